@@ -1,0 +1,248 @@
+/* stf_sim.c - builds an ODE world, the fluid and their coupling from a scene. */
+#include "stf_sim.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static void ode_init_once(void)
+{
+    static int done;
+    if (!done) {
+        dInitODE2(0);
+        dAllocateODEDataForThread(dAllocateMaskAll);
+        done = 1;
+    }
+}
+
+static double shape_volume(const stf_collider_def *d)
+{
+    const double pi = 3.14159265358979323846;
+    switch (d->shape) {
+    case STF_SHAPE_SPHERE: return 4.0 / 3.0 * pi * d->radius * d->radius * d->radius;
+    case STF_SHAPE_BOX: return 8.0 * d->half[0] * d->half[1] * d->half[2];
+    case STF_SHAPE_CAPSULE:
+        return pi * d->radius * d->radius * (2 * d->half_length + 4.0 / 3.0 * d->radius);
+    case STF_SHAPE_CYLINDER: return pi * d->radius * d->radius * 2 * d->half_length;
+    default: return 0;
+    }
+}
+
+static dGeomID make_geom(dSpaceID space, const stf_collider_def *d)
+{
+    switch (d->shape) {
+    case STF_SHAPE_SPHERE: return dCreateSphere(space, d->radius);
+    case STF_SHAPE_BOX: return dCreateBox(space, 2 * d->half[0], 2 * d->half[1], 2 * d->half[2]);
+    case STF_SHAPE_CAPSULE: return dCreateCapsule(space, d->radius, 2 * d->half_length);
+    case STF_SHAPE_CYLINDER: return dCreateCylinder(space, d->radius, 2 * d->half_length);
+    default: return 0;
+    }
+}
+
+static void set_mass(dMass *m, const stf_collider_def *d, double mass)
+{
+    switch (d->shape) {
+    case STF_SHAPE_SPHERE: dMassSetSphereTotal(m, mass, d->radius); break;
+    case STF_SHAPE_BOX: dMassSetBoxTotal(m, mass, 2 * d->half[0], 2 * d->half[1], 2 * d->half[2]); break;
+    case STF_SHAPE_CAPSULE: dMassSetCapsuleTotal(m, mass, 3, d->radius, 2 * d->half_length); break;
+    default: dMassSetCylinderTotal(m, mass, 3, d->radius, 2 * d->half_length); break;
+    }
+}
+
+static int make_body(stf_sim *s, int k, char *err, size_t errlen)
+{
+    const stf_body_def *b = &s->scene->bodies[k];
+    if (b->shape.shape == STF_SHAPE_CONVEX) {
+        snprintf(err, errlen, "%s:%d:%d: bodies.%d.shape: convex bodies are not supported in "
+                 "scene files yet (allowed: sphere, box, capsule, cylinder)",
+                 s->scene->path, b->line, b->col, k);
+        return 2;
+    }
+    dBodyID body = dBodyCreate(s->world);
+    dGeomID g = make_geom(s->space, &b->shape);
+    dGeomSetBody(g, body);
+    dBodySetPosition(body, b->position[0], b->position[1], b->position[2]);
+    dQuaternion q = {b->quaternion[0], b->quaternion[1], b->quaternion[2], b->quaternion[3]};
+    dBodySetQuaternion(body, q);
+    dBodySetLinearVel(body, b->velocity[0], b->velocity[1], b->velocity[2]);
+    dBodySetAngularVel(body, b->angular_velocity[0], b->angular_velocity[1], b->angular_velocity[2]);
+    if (b->motion == STF_MOTION_DYNAMIC) {
+        double mass = b->mass > 0 ? b->mass : b->density * shape_volume(&b->shape);
+        dMass m;
+        set_mass(&m, &b->shape, mass);
+        dBodySetMass(body, &m);
+    } else {
+        dBodySetKinematic(body);
+    }
+    dBodySetAutoDisableFlag(body, 0);
+    s->bodies[k] = body;
+    stf_ode_attach_def ad = {b->shape.friction, b->shape.stick};
+    if (stf_ode_attach_body(s->coupler, body, &ad, err, errlen) != 0) return 2;
+    return 0;
+}
+
+/* The container's floor and walls as ODE boxes (for the bodies), and as one container
+ * collider (for the fluid). */
+static int make_container(stf_sim *s, char *err, size_t errlen)
+{
+    const stf_container_def *c = &s->scene->container;
+    double w = c->wall, X = c->size[0], Y = c->size[1], H = c->size[2];
+    const double *p = c->position;
+    struct { double c[3], l[3]; } part[5] = {
+        {{0, 0, -w / 2}, {X + 2 * w, Y + 2 * w, w}},
+        {{-(X + w) / 2, 0, H / 2}, {w, Y + 2 * w, H}},
+        {{(X + w) / 2, 0, H / 2}, {w, Y + 2 * w, H}},
+        {{0, -(Y + w) / 2, H / 2}, {X, w, H}},
+        {{0, (Y + w) / 2, H / 2}, {X, w, H}},
+    };
+    dBodyID body = 0;
+    if (c->motion != STF_MOTION_STATIC) {
+        body = dBodyCreate(s->world);
+        dBodySetPosition(body, p[0], p[1], p[2]);
+        if (c->motion == STF_MOTION_DYNAMIC) {
+            dMass m;
+            dMassSetBoxTotal(&m, c->mass, X + 2 * w, Y + 2 * w, H + w);
+            dBodySetMass(body, &m);
+        } else {
+            dBodySetKinematic(body);
+        }
+        dBodySetAutoDisableFlag(body, 0);
+    }
+    for (int k = 0; k < 5; k++) {
+        dGeomID g = dCreateBox(s->space, part[k].l[0], part[k].l[1], part[k].l[2]);
+        if (body) {
+            dGeomSetBody(g, body);
+            dGeomSetOffsetPosition(g, part[k].c[0], part[k].c[1], part[k].c[2]);
+        } else {
+            dGeomSetPosition(g, p[0] + part[k].c[0], p[1] + part[k].c[1], p[2] + part[k].c[2]);
+        }
+    }
+    s->container = body;
+    memcpy(s->container_base, p, sizeof s->container_base);
+    stf_ode_attach_def ad = {c->friction, c->stick};
+    double origin[3] = {0, 0, 0};
+    if (stf_ode_attach_container(s->coupler, body, body ? origin : p, c->size, w, &ad, err,
+                                 errlen) != 0)
+        return 2;
+    return 0;
+}
+
+static int make_fluid(stf_sim *s, char *err, size_t errlen)
+{
+    const stf_scene *sc = s->scene;
+    char msg[256];
+    if (stf_fluid_create(&sc->fluid, &s->fluid, msg, sizeof msg) != 0) {
+        snprintf(err, errlen, "%s: fluid: %s", sc->path, msg);
+        return 2;
+    }
+    for (int k = 0; k < sc->nblocks; k++) {
+        const stf_block *b = &sc->blocks[k];
+        if (stf_fluid_add_block(s->fluid, b->lo, b->hi, b->velocity) <= 0) {
+            snprintf(err, errlen, "%s:%d:%d: fluid.blocks.%d: holds no particle at this spacing "
+                     "(or more than 10^8)", sc->path, b->line, b->col, k);
+            return 2;
+        }
+    }
+    return 0;
+}
+
+int stf_sim_create(const stf_scene *scene, stf_sim **out, char *err, size_t errlen)
+{
+    ode_init_once();
+    *out = NULL;
+    stf_sim *s = calloc(1, sizeof *s);
+    if (!s) return snprintf(err, errlen, "out of memory"), 2;
+    s->scene = scene;
+    int nb = scene->nbodies;
+    s->bodies = calloc((size_t)nb + 1, sizeof *s->bodies);
+    s->phase = calloc((size_t)nb + 1, sizeof *s->phase);
+    s->freq = calloc((size_t)nb + 1, sizeof *s->freq);
+    s->rng = calloc((size_t)nb + 1, sizeof *s->rng);
+    s->world = dWorldCreate();
+    s->space = dHashSpaceCreate(0);
+    int rc = make_fluid(s, err, errlen);
+    if (rc) goto fail;
+    const double *g = scene->fluid.gravity;
+    if (scene->fluid.effects & STF_EFFECT_GRAVITY) dWorldSetGravity(s->world, g[0], g[1], g[2]);
+    else dWorldSetGravity(s->world, 0, 0, 0);
+    s->coupler = stf_ode_create(s->world, s->space, s->fluid);
+    if (scene->container.present && (rc = make_container(s, err, errlen))) goto fail;
+    for (int k = 0; k < nb; k++)
+        if ((rc = make_body(s, k, err, errlen))) goto fail;
+    for (int k = 0; k <= nb; k++) {
+        const stf_vibration *v = k < nb ? &scene->bodies[k].vibration : &scene->container.vibration;
+        s->freq[k] = v->frequency;
+        s->rng[k] = v->seed * 2654435761u + 1u;
+    }
+    s->removed = stf_ode_remove_overlaps(s->coupler);
+    *out = s;
+    return 0;
+fail:
+    stf_sim_destroy(s);
+    return rc;
+}
+
+void stf_sim_destroy(stf_sim *s)
+{
+    if (!s) return;
+    stf_ode_destroy(s->coupler);
+    if (s->space) dSpaceDestroy(s->space);
+    if (s->world) dWorldDestroy(s->world);
+    stf_fluid_destroy(s->fluid);
+    free(s->bodies);
+    free(s->phase);
+    free(s->freq);
+    free(s->rng);
+    free(s);
+}
+
+static double uniform(unsigned *state)
+{
+    *state = *state * 1664525u + 1013904223u;
+    return (*state >> 8) / 16777216.0;
+}
+
+/* Drives a kinematic body along its vibration: x = x0 + A sin(phase) axis, with the
+ * frequency redrawn every jitter_period seconds (the paper's random frequency changes). */
+static void vibrate(stf_sim *s, dBodyID body, int k, const stf_vibration *v, const double base[3])
+{
+    if (!body || v->amplitude <= 0) return;
+    double dt = s->scene->dt, t = s->time;
+    if (v->jitter > 0 && floor((t + dt) / v->jitter_period) > floor(t / v->jitter_period))
+        s->freq[k] = v->frequency * (1.0 + v->jitter * (2.0 * uniform(&s->rng[k]) - 1.0));
+    double omega = 2.0 * 3.14159265358979323846 * s->freq[k];
+    double ph0 = s->phase[k], ph1 = ph0 + omega * dt;
+    s->phase[k] = ph1;
+    /* velocity that lands exactly on the next position, so ODE's integration stays on path */
+    double u = v->amplitude * (sin(ph1) - sin(ph0)) / dt;
+    double p = v->amplitude * sin(ph0);
+    dBodySetPosition(body, base[0] + p * v->axis[0], base[1] + p * v->axis[1], base[2] + p * v->axis[2]);
+    dBodySetLinearVel(body, u * v->axis[0], u * v->axis[1], u * v->axis[2]);
+}
+
+int stf_sim_step(stf_sim *s)
+{
+    const stf_scene *sc = s->scene;
+    for (int k = 0; k < sc->nbodies; k++)
+        if (sc->bodies[k].motion == STF_MOTION_KINEMATIC)
+            vibrate(s, s->bodies[k], k, &sc->bodies[k].vibration, sc->bodies[k].position);
+    if (sc->container.present && sc->container.motion == STF_MOTION_KINEMATIC)
+        vibrate(s, s->container, sc->nbodies, &sc->container.vibration, s->container_base);
+    if (stf_ode_step(s->coupler, sc->dt) != 0) return -1;
+    s->steps++;
+    s->time = s->steps * sc->dt;
+    return 0;
+}
+
+void stf_sim_body_state(const stf_sim *s, int k, double pos[3], double quat[4], double vel[3],
+                        double angvel[3], double force[3])
+{
+    dBodyID b = s->bodies[k];
+    const dReal *p = dBodyGetPosition(b), *q = dBodyGetQuaternion(b), *v = dBodyGetLinearVel(b),
+                *w = dBodyGetAngularVel(b);
+    for (int a = 0; a < 3; a++) pos[a] = p[a], vel[a] = v[a], angvel[a] = w[a];
+    for (int a = 0; a < 4; a++) quat[a] = q[a];
+    double torque[3];
+    stf_ode_body_fluid_force(s->coupler, b, force, torque);
+}

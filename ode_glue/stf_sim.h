@@ -1,0 +1,36 @@
+/* stf_sim.h - a scene file made real: an ODE world with the scene's container and bodies,
+ * the fluid, and the coupler between them. Used by the `stf` tool and the tests; an ODE user
+ * embedding the fluid uses stf_ode.h directly instead. */
+#ifndef STF_SIM_H
+#define STF_SIM_H
+
+#include "stf_ode.h"
+
+typedef struct stf_sim {
+    const stf_scene *scene;
+    dWorldID world;
+    dSpaceID space;
+    stf_fluid *fluid;
+    stf_ode *coupler;
+    dBodyID *bodies;        /* one per scene body */
+    dBodyID container;      /* 0 when the container is static */
+    double container_base[3];
+    double *phase;          /* vibration phase per body (+1 for the container), rad */
+    double *freq;           /* current vibration frequency, Hz */
+    unsigned *rng;
+    int removed;            /* particles removed at set-up because they overlapped bodies */
+    long steps;
+    double time;
+} stf_sim;
+
+/* Builds the simulation. Returns 0; 2 with a message for a scene that cannot be built. */
+int stf_sim_create(const stf_scene *scene, stf_sim **out, char *err, size_t errlen);
+void stf_sim_destroy(stf_sim *s);
+/* One substep of the scene's dt. Returns 0, or -1 on a numerical failure. */
+int stf_sim_step(stf_sim *s);
+/* A body's state: position (m), quaternion (w,x,y,z), velocity (m/s), angular velocity
+ * (rad/s), fluid force of the last step (N). */
+void stf_sim_body_state(const stf_sim *s, int k, double pos[3], double quat[4], double vel[3],
+                        double angvel[3], double force[3]);
+
+#endif

@@ -1,0 +1,47 @@
+/* boundary.c - the boundary treatment of the paper's section 3.3.
+ *
+ * A particle at a wall (within half a spacing of touching it) loses the part of its velocity
+ * that goes into the wall, and its tangential velocity is lowered in proportion to the mean
+ * history stiffness of its springs: v_t <- v_t * k_min / (k_min + stick * k_hist_mean).
+ * Solid-like fluid then sticks to the walls and passes its load to them; as the history
+ * stiffness fades the factor returns to 1 and the wall is an ordinary one. Velocities are
+ * relative to the wall, and each change is an impulse the wall receives back. */
+#include "fluid.h"
+
+static int stick_one(stf_fluid *f, const collider *c, int i, double *imp)
+{
+    const double *x = f->x + 3 * i;
+    double *v = f->v + 3 * i;
+    double band = f->def.spacing, nrm[3];
+    double d = collider_sdf(c, x, nrm);
+    if (d >= band) return 0;
+    double vb[3], vrel[3];
+    collider_velocity_at(c, x, vb);
+    for (int a = 0; a < 3; a++) vrel[a] = v[a] - vb[a];
+    double vn = vrel[0] * nrm[0] + vrel[1] * nrm[1] + vrel[2] * nrm[2];
+    double kh = f->khist_mean ? f->khist_mean[i] : 0.0;
+    double keep = f->def.k_min > 0 ? f->def.k_min / (f->def.k_min + f->def.stick * kh)
+                                   : (kh > 0 ? 0.0 : 1.0);
+    double old[3] = {v[0], v[1], v[2]};
+    double vn_keep = vn < 0 ? 0.0 : vn; /* cancel the part going into the wall */
+    for (int a = 0; a < 3; a++) {
+        double vt = vrel[a] - vn * nrm[a];
+        v[a] = vb[a] + vn_keep * nrm[a] + keep * vt;
+    }
+    for (int a = 0; a < 3; a++) imp[3 * i + a] = f->mass * (v[a] - old[a]);
+    return 1;
+}
+
+void boundary_stick(stf_fluid *f, double dt)
+{
+    (void)dt;
+    int n = f->n;
+    for (int k = 0; k < f->ncolliders; k++) {
+        collider *c = &f->colliders[k];
+        if (!c->def.stick) continue;
+        char *hit = f->hit;
+#pragma omp parallel for schedule(static)
+        for (int i = 0; i < n; i++) hit[i] = (char)stick_one(f, c, i, f->dx);
+        collider_take_reaction(c, f->dx, f->x, hit, n);
+    }
+}

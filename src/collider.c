@@ -1,0 +1,358 @@
+/* collider.c - signed distances to solids and the collision stage of the step. */
+#include "collider.h"
+
+#include <ccd/ccd.h>
+#include <ccd/quat.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fluid.h"
+
+static void to_local(const collider *c, const double x[3], double p[3])
+{
+    double d[3] = {x[0] - c->pos[0], x[1] - c->pos[1], x[2] - c->pos[2]};
+    const double *R = c->rot;
+    for (int a = 0; a < 3; a++) p[a] = R[a] * d[0] + R[3 + a] * d[1] + R[6 + a] * d[2];
+}
+
+static void to_world_dir(const collider *c, const double l[3], double w[3])
+{
+    const double *R = c->rot;
+    for (int a = 0; a < 3; a++) w[a] = R[3 * a] * l[0] + R[3 * a + 1] * l[1] + R[3 * a + 2] * l[2];
+}
+
+static double norm3(const double a[3]) { return sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]); }
+
+static double sdf_box(const double p[3], const double half[3], double n[3])
+{
+    double q[3], out[3];
+    int inside_axis = 0;
+    double inside_max = -1e300;
+    for (int a = 0; a < 3; a++) {
+        q[a] = fabs(p[a]) - half[a];
+        out[a] = q[a] > 0 ? q[a] : 0;
+        if (q[a] > inside_max) inside_max = q[a], inside_axis = a;
+    }
+    double o = norm3(out);
+    if (o > 0) {
+        for (int a = 0; a < 3; a++) n[a] = (p[a] < 0 ? -out[a] : out[a]) / o;
+        return o;
+    }
+    n[0] = n[1] = n[2] = 0; /* inside: leave through the nearest face */
+    n[inside_axis] = p[inside_axis] < 0 ? -1 : 1;
+    return inside_max;
+}
+
+static double sdf_capsule(const double p[3], double r, double hl, double n[3])
+{
+    double z = p[2] < -hl ? -hl : (p[2] > hl ? hl : p[2]);
+    double d[3] = {p[0], p[1], p[2] - z};
+    double len = norm3(d);
+    if (len < 1e-15) { /* on the axis: any radial direction will do */
+        n[0] = 1, n[1] = 0, n[2] = 0;
+        return -r;
+    }
+    for (int a = 0; a < 3; a++) n[a] = d[a] / len;
+    return len - r;
+}
+
+static double sdf_cylinder(const double p[3], double r, double hl, double n[3])
+{
+    double rho = sqrt(p[0] * p[0] + p[1] * p[1]);
+    double dr = rho - r, dz = fabs(p[2]) - hl;
+    double er[3] = {1, 0, 0};
+    if (rho > 1e-15) er[0] = p[0] / rho, er[1] = p[1] / rho;
+    double sz = p[2] < 0 ? -1 : 1;
+    if (dr > 0 && dz > 0) { /* beside a rim edge */
+        double len = sqrt(dr * dr + dz * dz);
+        for (int a = 0; a < 2; a++) n[a] = er[a] * dr / len;
+        n[2] = sz * dz / len;
+        return len;
+    }
+    if (dr > dz) {
+        n[0] = er[0], n[1] = er[1], n[2] = 0;
+        return dr;
+    }
+    n[0] = n[1] = 0, n[2] = sz;
+    return dz;
+}
+
+/* Open-top box, local origin at the centre of the floor's top face; the inside is free. */
+static double sdf_container(const double p[3], const double half[3], double wall, double n[3])
+{
+    double hx = half[0], hy = half[1], top = 2.0 * half[2];
+    int in_shell = fabs(p[0]) <= hx + wall && fabs(p[1]) <= hy + wall && p[2] >= -wall &&
+                   p[2] <= top;
+    if (!in_shell) { /* outside the container: far from every inner wall */
+        n[0] = n[1] = 0, n[2] = 1;
+        return 1e30;
+    }
+    double q[3] = {fabs(p[0]) - hx, fabs(p[1]) - hy, -p[2]};
+    if (q[0] < 0 && q[1] < 0 && q[2] < 0) { /* inside: the nearest wall or the floor */
+        double d = -q[0];
+        n[0] = p[0] < 0 ? 1 : -1, n[1] = 0, n[2] = 0;
+        if (-q[1] < d) d = -q[1], n[0] = 0, n[1] = p[1] < 0 ? 1 : -1, n[2] = 0;
+        if (-q[2] < d) d = -q[2], n[0] = 0, n[1] = 0, n[2] = 1;
+        return d;
+    }
+    /* In the walls or floor: back to the inner box by the shortest way. */
+    double out[3] = {q[0] > 0 ? q[0] : 0, q[1] > 0 ? q[1] : 0, q[2] > 0 ? q[2] : 0};
+    double o = norm3(out);
+    n[0] = p[0] < 0 ? out[0] / o : -out[0] / o;
+    n[1] = p[1] < 0 ? out[1] / o : -out[1] / o;
+    n[2] = out[2] / o;
+    return -o;
+}
+
+/* libccd support functions: a convex hull and a point (the particle centre). */
+typedef struct hull_obj {
+    const collider *c;
+} hull_obj;
+
+static void support_hull(const void *obj, const ccd_vec3_t *dir, ccd_vec3_t *vec)
+{
+    const collider *c = ((const hull_obj *)obj)->c;
+    double dl[3], dw[3] = {ccdVec3X(dir), ccdVec3Y(dir), ccdVec3Z(dir)};
+    const double *R = c->rot;
+    for (int a = 0; a < 3; a++) dl[a] = R[a] * dw[0] + R[3 + a] * dw[1] + R[6 + a] * dw[2];
+    int best = 0;
+    double bd = -1e300;
+    for (int k = 0; k < c->def.npoints; k++) {
+        const double *q = c->points + 3 * k;
+        double d = q[0] * dl[0] + q[1] * dl[1] + q[2] * dl[2];
+        if (d > bd) bd = d, best = k;
+    }
+    double w[3];
+    to_world_dir(c, c->points + 3 * best, w);
+    ccdVec3Set(vec, w[0] + c->pos[0], w[1] + c->pos[1], w[2] + c->pos[2]);
+}
+
+static void center_hull(const void *obj, ccd_vec3_t *center)
+{
+    const collider *c = ((const hull_obj *)obj)->c;
+    ccdVec3Set(center, c->pos[0], c->pos[1], c->pos[2]);
+}
+
+static void support_point(const void *obj, const ccd_vec3_t *dir, ccd_vec3_t *vec)
+{
+    const double *x = obj;
+    (void)dir;
+    ccdVec3Set(vec, x[0], x[1], x[2]);
+}
+
+static void center_point(const void *obj, ccd_vec3_t *center)
+{
+    const double *x = obj;
+    ccdVec3Set(center, x[0], x[1], x[2]);
+}
+
+static double sdf_convex(const collider *c, const double x[3], double n[3])
+{
+    ccd_t ccd;
+    CCD_INIT(&ccd);
+    ccd.support1 = support_hull;
+    ccd.support2 = support_point;
+    ccd.center1 = center_hull;
+    ccd.center2 = center_point;
+    ccd.mpr_tolerance = 1e-9;
+    hull_obj h = {c};
+    ccd_real_t depth;
+    ccd_vec3_t dir, pos;
+    if (ccdMPRPenetration(&h, x, &ccd, &depth, &dir, &pos) != 0) {
+        n[0] = n[1] = 0, n[2] = 1; /* no contact: only contacts matter here */
+        return 1e30;
+    }
+    /* dir: the direction to move the point to separate it, i.e. out of the hull. */
+    n[0] = ccdVec3X(&dir), n[1] = ccdVec3Y(&dir), n[2] = ccdVec3Z(&dir);
+    return -depth;
+}
+
+double collider_sdf(const collider *c, const double x[3], double n[3])
+{
+    double p[3], nl[3], d;
+    switch (c->def.shape) {
+    case STF_SHAPE_PLANE: {
+        double nw[3];
+        to_world_dir(c, c->def.normal, nw);
+        n[0] = nw[0], n[1] = nw[1], n[2] = nw[2];
+        return nw[0] * (x[0] - c->pos[0]) + nw[1] * (x[1] - c->pos[1]) +
+               nw[2] * (x[2] - c->pos[2]) - c->def.offset;
+    }
+    case STF_SHAPE_CONVEX:
+        return sdf_convex(c, x, n);
+    case STF_SHAPE_SPHERE: {
+        double dd[3] = {x[0] - c->pos[0], x[1] - c->pos[1], x[2] - c->pos[2]};
+        double len = norm3(dd);
+        if (len < 1e-15) {
+            n[0] = 0, n[1] = 0, n[2] = 1;
+            return -c->def.radius;
+        }
+        for (int a = 0; a < 3; a++) n[a] = dd[a] / len;
+        return len - c->def.radius;
+    }
+    default:
+        break;
+    }
+    to_local(c, x, p);
+    if (c->def.shape == STF_SHAPE_BOX) d = sdf_box(p, c->def.half, nl);
+    else if (c->def.shape == STF_SHAPE_CAPSULE)
+        d = sdf_capsule(p, c->def.radius, c->def.half_length, nl);
+    else if (c->def.shape == STF_SHAPE_CYLINDER)
+        d = sdf_cylinder(p, c->def.radius, c->def.half_length, nl);
+    else d = sdf_container(p, c->def.half, c->def.wall, nl);
+    to_world_dir(c, nl, n);
+    return d;
+}
+
+void collider_velocity_at(const collider *c, const double x[3], double v[3])
+{
+    double r[3] = {x[0] - c->pos[0], x[1] - c->pos[1], x[2] - c->pos[2]};
+    const double *w = c->angvel;
+    v[0] = c->vel[0] + w[1] * r[2] - w[2] * r[1];
+    v[1] = c->vel[1] + w[2] * r[0] - w[0] * r[2];
+    v[2] = c->vel[2] + w[0] * r[1] - w[1] * r[0];
+}
+
+static double bounding_radius(const collider *c)
+{
+    const stf_collider_def *d = &c->def;
+    switch (d->shape) {
+    case STF_SHAPE_SPHERE: return d->radius;
+    case STF_SHAPE_BOX: return norm3(d->half);
+    case STF_SHAPE_CAPSULE:
+    case STF_SHAPE_CYLINDER: return sqrt(d->radius * d->radius + d->half_length * d->half_length) + d->radius;
+    case STF_SHAPE_CONVEX: {
+        double b = 0;
+        for (int k = 0; k < d->npoints; k++) {
+            double r = norm3(c->points + 3 * k);
+            if (r > b) b = r;
+        }
+        return b;
+    }
+    default: return -1; /* planes and containers reach every particle */
+    }
+}
+
+int collider_init(collider *c, const stf_collider_def *def, char *err, size_t errlen)
+{
+    memset(c, 0, sizeof *c);
+    c->def = *def;
+    c->def.points = NULL;
+    const char *bad = NULL;
+    switch (def->shape) {
+    case STF_SHAPE_PLANE:
+        if (!(norm3(def->normal) > 0)) bad = "plane normal must be non-zero";
+        break;
+    case STF_SHAPE_SPHERE:
+        if (!(def->radius > 0)) bad = "sphere radius must be > 0";
+        break;
+    case STF_SHAPE_BOX:
+        if (!(def->half[0] > 0 && def->half[1] > 0 && def->half[2] > 0))
+            bad = "box half extents must be > 0";
+        break;
+    case STF_SHAPE_CAPSULE:
+    case STF_SHAPE_CYLINDER:
+        if (!(def->radius > 0 && def->half_length > 0))
+            bad = "radius and half_length must be > 0";
+        break;
+    case STF_SHAPE_CONTAINER:
+        if (!(def->half[0] > 0 && def->half[1] > 0 && def->half[2] > 0 && def->wall >= 0))
+            bad = "container half extents must be > 0 and wall >= 0";
+        break;
+    case STF_SHAPE_CONVEX:
+        if (!def->points || def->npoints < 4) bad = "convex shape needs at least 4 points";
+        break;
+    default:
+        bad = "unknown shape";
+    }
+    if (!bad && !(def->friction >= 0 && def->friction <= 1)) bad = "friction must be in [0,1]";
+    if (bad) {
+        snprintf(err, errlen, "collider: %s", bad);
+        return -1;
+    }
+    if (def->shape == STF_SHAPE_PLANE) {
+        double len = norm3(def->normal);
+        for (int a = 0; a < 3; a++) c->def.normal[a] = def->normal[a] / len;
+    }
+    if (def->shape == STF_SHAPE_CONVEX) {
+        c->points = malloc((size_t)def->npoints * 3 * sizeof *c->points);
+        if (!c->points) {
+            snprintf(err, errlen, "collider: out of memory");
+            return -1;
+        }
+        memcpy(c->points, def->points, (size_t)def->npoints * 3 * sizeof *c->points);
+    }
+    c->rot[0] = c->rot[4] = c->rot[8] = 1;
+    c->bound = bounding_radius(c);
+    return 0;
+}
+
+void collider_free(collider *c)
+{
+    free(c->points);
+    c->points = NULL;
+}
+
+void collider_take_reaction(collider *c, const double *imp, const double *x, const char *hit,
+                            int n)
+{
+    double J[3] = {0, 0, 0}, M[3] = {0, 0, 0};
+    for (int i = 0; i < n; i++) {
+        if (!hit[i]) continue;
+        const double *p = imp + 3 * i;
+        double r[3] = {x[3 * i] - c->pos[0], x[3 * i + 1] - c->pos[1], x[3 * i + 2] - c->pos[2]};
+        J[0] -= p[0], J[1] -= p[1], J[2] -= p[2];
+        M[0] -= r[1] * p[2] - r[2] * p[1];
+        M[1] -= r[2] * p[0] - r[0] * p[2];
+        M[2] -= r[0] * p[1] - r[1] * p[0];
+    }
+    for (int a = 0; a < 3; a++) c->impulse[a] += J[a], c->moment[a] += M[a];
+}
+
+/* Near a collider? A cheap sphere test before the exact distance. */
+static int maybe_near(const collider *c, const double x[3], double margin)
+{
+    if (c->bound < 0) return 1;
+    double d[3] = {x[0] - c->pos[0], x[1] - c->pos[1], x[2] - c->pos[2]};
+    double R = c->bound + margin;
+    return d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= R * R;
+}
+
+/* Projects particle i out of collider c and removes `friction` of its tangential slip;
+ * stores the impulse given to the particle in imp. Returns 1 on contact. */
+static int collide_one(stf_fluid *f, const collider *c, int i, double dt, double *imp)
+{
+    double *x = f->x + 3 * i;
+    double rp = 0.5 * f->def.spacing, nrm[3];
+    if (!maybe_near(c, x, rp)) return 0;
+    double d = collider_sdf(c, x, nrm);
+    if (d >= rp) return 0;
+    double old[3] = {x[0], x[1], x[2]};
+    for (int a = 0; a < 3; a++) x[a] += (rp - d) * nrm[a];
+    double vb[3], vrel[3];
+    collider_velocity_at(c, x, vb);
+    for (int a = 0; a < 3; a++) vrel[a] = (x[a] - f->xprev[3 * i + a]) / dt - vb[a];
+    double vn = vrel[0] * nrm[0] + vrel[1] * nrm[1] + vrel[2] * nrm[2];
+    double mu = c->def.friction;
+    for (int a = 0; a < 3; a++) {
+        double vt = vrel[a] - vn * nrm[a];
+        /* approaching relative motion is removed too (a wall moving into the fluid) */
+        x[a] -= dt * (mu * vt + (vn < 0 ? vn * nrm[a] : 0));
+    }
+    for (int a = 0; a < 3; a++) imp[3 * i + a] = f->mass * (x[a] - old[a]) / dt;
+    return 1;
+}
+
+void collide_all(stf_fluid *f, double dt)
+{
+    int n = f->n;
+    for (int k = 0; k < f->ncolliders; k++) {
+        collider *c = &f->colliders[k];
+        char *hit = f->hit;
+#pragma omp parallel for schedule(static)
+        for (int i = 0; i < n; i++) hit[i] = (char)collide_one(f, c, i, dt, f->dx);
+        collider_take_reaction(c, f->dx, f->x, hit, n);
+    }
+}

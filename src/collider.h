@@ -1,0 +1,33 @@
+/* collider.h - solids the particles collide with: analytic signed distances, libccd (MPR)
+ * for convex hulls. Each collider sums the impulses it gives the fluid, so ode_glue can hand
+ * the reaction to its rigid body. */
+#ifndef STF_COLLIDER_H
+#define STF_COLLIDER_H
+
+#include "stf.h"
+
+typedef struct collider {
+    stf_collider_def def;
+    double *points;   /* convex: own copy of the hull points (body frame) */
+    double pos[3];    /* m, world */
+    double rot[9];    /* body -> world, row-major */
+    double vel[3];    /* m/s at pos */
+    double angvel[3]; /* rad/s */
+    double impulse[3];/* N s given to the collider during the last step */
+    double moment[3]; /* N m s, about pos */
+    double bound;     /* m: radius of a sphere around pos holding the solid (<0: unbounded) */
+} collider;
+
+int collider_init(collider *c, const stf_collider_def *def, char *err, size_t errlen);
+void collider_free(collider *c);
+/* Signed distance from x to the surface (m, > 0 outside the solid, may be a large positive
+ * number when far) and the unit normal pointing out of the solid. */
+double collider_sdf(const collider *c, const double x[3], double n[3]);
+/* Velocity of the collider's material at world point x. */
+void collider_velocity_at(const collider *c, const double x[3], double v[3]);
+/* Adds the per-particle impulses imp (3n, N s, on the particles at positions x) to the
+ * collider as their reaction, in particle order so the sum does not depend on threads. */
+void collider_take_reaction(collider *c, const double *imp, const double *x, const char *hit,
+                            int n);
+
+#endif

@@ -1,0 +1,498 @@
+/* fluid.c - creation, particles, and the step of the paper's Algorithm 1. */
+#include "fluid.h"
+
+#include <math.h>
+#include <omp.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+stf_fluid_def stf_default_fluid_def(void)
+{
+    stf_fluid_def d;
+    memset(&d, 0, sizeof d);
+    d.effects = STF_EFFECT_GRAVITY | STF_EFFECT_VISCOSITY | STF_EFFECT_PRESSURE |
+                STF_EFFECT_SPRINGS | STF_EFFECT_HISTORY | STF_EFFECT_BOUNDARY_STICK;
+    d.spacing = 0.01;
+    d.density = 1270.0; /* cornstarch in water, about 55% starch by mass */
+    d.h = 0.0;
+    d.gravity[2] = -9.81;
+    d.sigma = 2.0;
+    d.beta = 0.0;
+    d.k = 400.0;
+    d.k_near = 1000.0;
+    d.rest_density = 0.0;
+    d.k_min = 1000.0;
+    d.yield_ratio = 0.1;
+    d.plasticity = 2.0;
+    d.q = 0.5;
+    d.d = 150;
+    d.memory = 0.0;
+    d.k_hist = 10.0 * d.k_min; /* the paper's stable maximum, used for its results */
+    d.history_mode = STF_HISTORY_WINDOW;
+    d.stick = 1.0;
+    return d;
+}
+
+stf_collider_def stf_default_collider_def(void)
+{
+    stf_collider_def c;
+    memset(&c, 0, sizeof c);
+    c.shape = STF_SHAPE_SPHERE;
+    c.radius = 0.1;
+    c.normal[2] = 1.0;
+    c.wall = 0.02;
+    c.friction = 0.2;
+    return c;
+}
+
+void stf_set_threads(int n)
+{
+    if (n > 0) omp_set_num_threads(n);
+}
+
+#define FAIL(...)                                                                             \
+    do {                                                                                      \
+        snprintf(err, errlen, __VA_ARGS__);                                                   \
+        return -1;                                                                            \
+    } while (0)
+
+static int check_def(const stf_fluid_def *d, char *err, size_t errlen)
+{
+    const unsigned all = STF_EFFECT_GRAVITY | STF_EFFECT_VISCOSITY | STF_EFFECT_PRESSURE |
+                         STF_EFFECT_SPRINGS | STF_EFFECT_HISTORY | STF_EFFECT_BOUNDARY_STICK;
+    if (d->effects & ~all) FAIL("effects: unknown effect bits 0x%x", d->effects & ~all);
+    if (!(d->spacing > 0 && isfinite(d->spacing))) FAIL("spacing: must be > 0 (got %g)", d->spacing);
+    if (!(d->density > 0 && isfinite(d->density))) FAIL("density: must be > 0 (got %g)", d->density);
+    if (!(d->h == 0 || (d->h >= d->spacing && d->h <= 5 * d->spacing)))
+        FAIL("h: must be 0 or in [spacing, 5*spacing] (got %g)", d->h);
+    for (int a = 0; a < 3; a++)
+        if (!isfinite(d->gravity[a])) FAIL("gravity: must be finite");
+    if (!(d->sigma >= 0 && isfinite(d->sigma))) FAIL("sigma: must be >= 0 (got %g)", d->sigma);
+    if (!(d->beta >= 0 && isfinite(d->beta))) FAIL("beta: must be >= 0 (got %g)", d->beta);
+    if ((d->effects & STF_EFFECT_PRESSURE) && !(d->k > 0 && isfinite(d->k)))
+        FAIL("k: must be > 0 (got %g)", d->k);
+    if (!(d->k_near >= 0 && isfinite(d->k_near))) FAIL("k_near: must be >= 0 (got %g)", d->k_near);
+    if (!(d->rest_density >= 0 && isfinite(d->rest_density)))
+        FAIL("rest_density: must be >= 0 (got %g)", d->rest_density);
+    if (!(d->k_min >= 0 && isfinite(d->k_min))) FAIL("k_min: must be >= 0 (got %g)", d->k_min);
+    if (!(d->yield_ratio >= 0 && d->yield_ratio <= 1))
+        FAIL("yield_ratio: must be in [0,1] (got %g)", d->yield_ratio);
+    if (!(d->plasticity >= 0 && isfinite(d->plasticity)))
+        FAIL("plasticity: must be >= 0 (got %g)", d->plasticity);
+    if (d->effects & STF_EFFECT_HISTORY) {
+        if (!(d->effects & STF_EFFECT_SPRINGS)) FAIL("history: needs the springs effect");
+        if (!(d->q > 0 && d->q < 1)) FAIL("q: must be in (0,1) (got %g)", d->q);
+        if (d->history_mode != STF_HISTORY_WINDOW && d->history_mode != STF_HISTORY_FULL)
+            FAIL("history_mode: must be window or full (got %d)", d->history_mode);
+        if (d->history_mode == STF_HISTORY_WINDOW && d->memory <= 0 && d->d < 1)
+            FAIL("d: must be >= 1 (got %d)", d->d);
+        if (!(d->memory >= 0 && isfinite(d->memory))) FAIL("memory: must be >= 0 (got %g)", d->memory);
+        if (!(d->k_hist >= 0 && isfinite(d->k_hist))) FAIL("k_hist: must be >= 0 (got %g)", d->k_hist);
+    }
+    if (!(d->stick >= 0 && isfinite(d->stick))) FAIL("stick: must be >= 0 (got %g)", d->stick);
+    return 0;
+}
+
+/* Kernel density of a particle inside a cubic lattice at the given spacing. */
+static double lattice_density(double spacing, double h)
+{
+    int m = (int)ceil(h / spacing);
+    double rho = 0;
+    for (int a = -m; a <= m; a++)
+        for (int b = -m; b <= m; b++)
+            for (int c = -m; c <= m; c++) {
+                double r = spacing * sqrt((double)(a * a + b * b + c * c));
+                if (r > 0 && r < h) rho += (1 - r / h) * (1 - r / h);
+            }
+    return rho;
+}
+
+int stf_fluid_create(const stf_fluid_def *def, stf_fluid **out, char *err, size_t errlen)
+{
+    *out = NULL;
+    if (check_def(def, err, errlen) != 0) return -1;
+    stf_fluid *f = calloc(1, sizeof *f);
+    if (!f) FAIL("out of memory");
+    f->def = *def;
+    f->h = def->h > 0 ? def->h : 2.0 * def->spacing;
+    f->mass = def->density * def->spacing * def->spacing * def->spacing;
+    f->rest_density = def->rest_density > 0 ? def->rest_density : lattice_density(def->spacing, f->h);
+    f->reorder_interval = 16;
+    *out = f;
+    return 0;
+}
+
+void stf_fluid_destroy(stf_fluid *f)
+{
+    if (!f) return;
+    free(f->x);
+    free(f->v);
+    free(f->xprev);
+    free(f->dx);
+    free(f->hit);
+    free(f->id);
+    free(f->rho);
+    free(f->rho_near);
+    free(f->khist_mean);
+    grid_free(&f->grid);
+    if (f->springs.n_alloc) springs_free(&f->springs);
+    if (f->hist.n_alloc) history_free(&f->hist);
+    for (int k = 0; k < f->ncolliders; k++) collider_free(&f->colliders[k]);
+    free(f->colliders);
+    free(f);
+}
+
+static int grow(void **p, size_t elem, int cap)
+{
+    void *q = realloc(*p, elem * (size_t)cap);
+    if (!q) return -1;
+    *p = q;
+    return 0;
+}
+
+/* Makes room for n particles in every array the enabled effects need. */
+static int reserve(stf_fluid *f, int n)
+{
+    if (n <= f->cap) return 0;
+    int cap = n > 2 * f->cap ? n : 2 * f->cap;
+    if (grow((void **)&f->x, 3 * sizeof(double), cap) || grow((void **)&f->v, 3 * sizeof(double), cap) ||
+        grow((void **)&f->xprev, 3 * sizeof(double), cap) ||
+        grow((void **)&f->dx, 3 * sizeof(double), cap) || grow((void **)&f->hit, 1, cap) ||
+        grow((void **)&f->id, sizeof(int32_t), cap))
+        return -1;
+    if (has(f, STF_EFFECT_PRESSURE) &&
+        (grow((void **)&f->rho, sizeof(double), cap) || grow((void **)&f->rho_near, sizeof(double), cap)))
+        return -1;
+    if (has(f, STF_EFFECT_SPRINGS)) {
+        if (f->springs.n_alloc == 0 ? springs_init(&f->springs, cap) : springs_resize(&f->springs, cap))
+            return -1;
+    }
+    if (has(f, STF_EFFECT_HISTORY)) {
+        if (grow((void **)&f->khist_mean, sizeof(float), cap)) return -1;
+        if (f->hist.n_alloc == 0 && f->hist.w == NULL) {
+            /* the window is fixed at the first step, when dt is known */
+        } else if (history_resize(&f->hist, cap)) {
+            return -1;
+        }
+    }
+    f->cap = cap;
+    return 0;
+}
+
+int stf_fluid_add_particle(stf_fluid *f, const double x[3], const double v[3])
+{
+    if (reserve(f, f->n + 1) != 0) return -1;
+    int i = f->n++;
+    for (int a = 0; a < 3; a++) {
+        f->x[3 * i + a] = x[a];
+        f->v[3 * i + a] = v[a];
+        f->xprev[3 * i + a] = x[a];
+    }
+    f->id[i] = f->next_id++;
+    if (f->khist_mean) f->khist_mean[i] = 0;
+    if (f->springs.n_alloc) f->springs.count[i] = 0;
+    return i;
+}
+
+int stf_fluid_add_block(stf_fluid *f, const double lo[3], const double hi[3], const double v[3])
+{
+    double s = f->def.spacing;
+    long cnt[3];
+    for (int a = 0; a < 3; a++) cnt[a] = hi[a] > lo[a] ? (long)floor((hi[a] - lo[a]) / s + 1e-9) : 0;
+    if (cnt[0] * cnt[1] * cnt[2] > 100000000L) return -1;
+    if (reserve(f, f->n + (int)(cnt[0] * cnt[1] * cnt[2])) != 0) return -1;
+    int added = 0;
+    /* Lattice sites at cell centres, so a block of size L holds L/s layers. */
+    for (long c = 0; c < cnt[2]; c++)
+        for (long b = 0; b < cnt[1]; b++)
+            for (long a = 0; a < cnt[0]; a++) {
+                double x[3] = {lo[0] + (a + 0.5) * s, lo[1] + (b + 0.5) * s, lo[2] + (c + 0.5) * s};
+                if (stf_fluid_add_particle(f, x, v) < 0) return -1;
+                added++;
+            }
+    return added;
+}
+
+int stf_fluid_add_collider(stf_fluid *f, const stf_collider_def *def, char *err, size_t errlen)
+{
+    if (f->ncolliders == f->collider_cap) {
+        int cap = f->collider_cap ? 2 * f->collider_cap : 4;
+        if (grow((void **)&f->colliders, sizeof(collider), cap)) FAIL("out of memory");
+        f->collider_cap = cap;
+    }
+    if (collider_init(&f->colliders[f->ncolliders], def, err, errlen) != 0) return -1;
+    return f->ncolliders++;
+}
+
+void stf_fluid_set_collider_state(stf_fluid *f, int id, const double pos[3], const double rot[9],
+                                  const double vel[3], const double angvel[3])
+{
+    collider *c = &f->colliders[id];
+    memcpy(c->pos, pos, sizeof c->pos);
+    if (rot) memcpy(c->rot, rot, sizeof c->rot);
+    if (vel) memcpy(c->vel, vel, sizeof c->vel);
+    if (angvel) memcpy(c->angvel, angvel, sizeof c->angvel);
+}
+
+double stf_fluid_collider_distance(const stf_fluid *f, int id, const double x[3])
+{
+    double n[3];
+    return collider_sdf(&f->colliders[id], x, n);
+}
+
+void stf_fluid_collider_impulse(const stf_fluid *f, int id, double impulse[3], double moment[3])
+{
+    const collider *c = &f->colliders[id];
+    memcpy(impulse, c->impulse, sizeof c->impulse);
+    memcpy(moment, c->moment, sizeof c->moment);
+}
+
+int stf_fluid_remove_inside(stf_fluid *f, int id)
+{
+    /* Particles closer than half a spacing would be thrown out on the first step. */
+    double margin = 0.5 * f->def.spacing;
+    int m = 0;
+    int32_t *perm = malloc((size_t)(f->n > 0 ? f->n : 1) * sizeof *perm);
+    if (!perm) return -1;
+    for (int i = 0; i < f->n; i++) {
+        double nrm[3];
+        if (collider_sdf(&f->colliders[id], f->x + 3 * i, nrm) >= margin) perm[m++] = i;
+    }
+    int removed = f->n - m;
+    if (removed) {
+        f->n = m; /* keep the first m of perm; springs to the others are dropped */
+        fluid_permute(f, perm);
+    }
+    free(perm);
+    return removed;
+}
+
+/* ------------------------------------------------------------------ permutation */
+
+static void permute_vec3(double *a, double *tmp, const int32_t *perm, int n)
+{
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++)
+        for (int c = 0; c < 3; c++) tmp[3 * i + c] = a[3 * perm[i] + c];
+    memcpy(a, tmp, (size_t)n * 3 * sizeof *a);
+}
+
+void fluid_permute(stf_fluid *f, const int32_t *perm)
+{
+    int n = f->n;
+    permute_vec3(f->x, f->dx, perm, n);
+    permute_vec3(f->v, f->dx, perm, n);
+    permute_vec3(f->xprev, f->dx, perm, n);
+    int32_t *inv = malloc((size_t)f->cap * sizeof *inv);
+    int32_t *ids = malloc((size_t)f->cap * sizeof *ids);
+    if (!inv || !ids) abort(); /* a few bytes a particle; nothing sane is left to do */
+    for (int i = 0; i < f->cap; i++) inv[i] = -1;
+    for (int i = 0; i < n; i++) {
+        ids[i] = f->id[perm[i]];
+        inv[perm[i]] = i;
+    }
+    memcpy(f->id, ids, (size_t)n * sizeof *ids);
+    if (f->khist_mean) {
+        float *k = (float *)ids;
+        for (int i = 0; i < n; i++) k[i] = f->khist_mean[perm[i]];
+        memcpy(f->khist_mean, k, (size_t)n * sizeof *k);
+    }
+    if (f->springs.n_alloc) springs_permute(&f->springs, perm, inv, n);
+    if (f->hist.n_alloc && history_permute(&f->hist, perm, n) != 0) abort();
+    free(inv);
+    free(ids);
+}
+
+/* --------------------------------------------------------------------- the step */
+
+static int first_bad(const stf_fluid *f)
+{
+    int bad = f->n;
+#pragma omp parallel for schedule(static) reduction(min : bad)
+    for (int i = 0; i < f->n; i++) {
+        const double *x = f->x + 3 * i, *v = f->v + 3 * i;
+        int ok = isfinite(x[0]) && isfinite(x[1]) && isfinite(x[2]) && isfinite(v[0]) &&
+                 isfinite(v[1]) && isfinite(v[2]);
+        if (!ok && i < bad) bad = i;
+    }
+    return bad < f->n ? bad : -1;
+}
+
+static int check(stf_fluid *f, const char *effect)
+{
+    int i = first_bad(f);
+    if (i < 0) return 0;
+    snprintf(f->failure, sizeof f->failure,
+             "step %ld (t = %.6g s): particle %d (id %d) has a non-finite position or velocity "
+             "after effect '%s'",
+             f->steps + 1, f->time, i, f->id[i], effect);
+    return -1;
+}
+
+static int start_history(stf_fluid *f, double dt)
+{
+    int window = 0;
+    if (f->def.history_mode == STF_HISTORY_WINDOW)
+        window = f->def.memory > 0 ? (int)lround(f->def.memory / dt) : f->def.d;
+    if (window < 1 && f->def.history_mode == STF_HISTORY_WINDOW) window = 1;
+    return history_init(&f->hist, f->def.q, window, f->cap > 0 ? f->cap : 1);
+}
+
+static void reorder_by_cell(stf_fluid *f)
+{
+    /* The grid's bucket order keeps each cell's particles together in memory. */
+    fluid_permute(f, f->grid.order);
+}
+
+static void gravity_apply(stf_fluid *f, double dt)
+{
+    const double *g = f->def.gravity;
+    int n = f->n;
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++)
+        for (int a = 0; a < 3; a++) f->v[3 * i + a] += dt * g[a];
+}
+
+#define TIMED(stage, call)                                                                    \
+    do {                                                                                      \
+        double t0_ = omp_get_wtime();                                                         \
+        call;                                                                                 \
+        f->stage_seconds[stage] += omp_get_wtime() - t0_;                                     \
+    } while (0)
+
+int stf_fluid_step(stf_fluid *f, double dt)
+{
+    if (f->failure[0]) return -1;
+    int n = f->n;
+    f->dt_now = dt;
+    for (int k = 0; k < f->ncolliders; k++) {
+        memset(f->colliders[k].impulse, 0, sizeof f->colliders[k].impulse);
+        memset(f->colliders[k].moment, 0, sizeof f->colliders[k].moment);
+    }
+    if (has(f, STF_EFFECT_HISTORY) && f->hist.w == NULL && start_history(f, dt) != 0) goto oom;
+    TIMED(STAGE_GRID, {
+        if (grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
+        if (f->steps % f->reorder_interval == 0) {
+            reorder_by_cell(f);
+            if (grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
+        }
+    });
+    if (has(f, STF_EFFECT_HISTORY)) {
+        TIMED(STAGE_HISTORY, {
+            if (history_push(&f->hist, f->v, n) != 0) goto oom;
+            history_derivative(&f->hist, n);
+        });
+    }
+    if (has(f, STF_EFFECT_GRAVITY)) {
+        TIMED(STAGE_GRAVITY, gravity_apply(f, dt));
+    }
+    if (has(f, STF_EFFECT_VISCOSITY)) {
+        TIMED(STAGE_VISCOSITY, viscosity_apply(f, dt));
+        if (check(f, "viscosity")) return -1;
+    }
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < 3 * n; i++) {
+        f->xprev[i] = f->x[i];
+        f->x[i] += dt * f->v[i];
+    }
+    if (has(f, STF_EFFECT_SPRINGS)) {
+        int rc = 0;
+        TIMED(STAGE_SPRINGS, rc = springs_step(f, dt));
+        if (rc != 0) goto oom;
+        if (check(f, has(f, STF_EFFECT_HISTORY) ? "history springs" : "springs")) return -1;
+    }
+    if (has(f, STF_EFFECT_PRESSURE)) {
+        TIMED(STAGE_PRESSURE, pressure_relax(f, dt));
+        if (check(f, "pressure")) return -1;
+    }
+    TIMED(STAGE_COLLIDE, collide_all(f, dt));
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < 3 * n; i++) f->v[i] = (f->x[i] - f->xprev[i]) / dt;
+    if (check(f, "collisions")) return -1;
+    if (has(f, STF_EFFECT_BOUNDARY_STICK)) {
+        TIMED(STAGE_BOUNDARY, boundary_stick(f, dt));
+        if (check(f, "boundary_stick")) return -1;
+    }
+    f->time += dt;
+    f->steps++;
+    return 0;
+oom:
+    snprintf(f->failure, sizeof f->failure, "step %ld (t = %.6g s): out of memory", f->steps + 1,
+             f->time);
+    return -1;
+}
+
+const char *stf_fluid_failure(const stf_fluid *f) { return f->failure; }
+
+/* ------------------------------------------------------------------ read access */
+
+int stf_fluid_count(const stf_fluid *f) { return f->n; }
+double stf_fluid_particle_mass(const stf_fluid *f) { return f->mass; }
+double stf_fluid_time(const stf_fluid *f) { return f->time; }
+long stf_fluid_steps(const stf_fluid *f) { return f->steps; }
+void stf_fluid_get_positions(const stf_fluid *f, double *x) { memcpy(x, f->x, (size_t)f->n * 3 * sizeof *x); }
+void stf_fluid_get_velocities(const stf_fluid *f, double *v) { memcpy(v, f->v, (size_t)f->n * 3 * sizeof *v); }
+void stf_fluid_get_ids(const stf_fluid *f, int32_t *id) { memcpy(id, f->id, (size_t)f->n * sizeof *id); }
+
+void stf_fluid_get_history_stiffness(const stf_fluid *f, float *k)
+{
+    if (f->khist_mean) memcpy(k, f->khist_mean, (size_t)f->n * sizeof *k);
+    else memset(k, 0, (size_t)f->n * sizeof *k);
+}
+
+long stf_fluid_spring_count(const stf_fluid *f)
+{
+    return f->springs.n_alloc ? springs_total(&f->springs, f->n) : 0;
+}
+
+int stf_fluid_history_steps(const stf_fluid *f)
+{
+    if (!has(f, STF_EFFECT_HISTORY)) return 0;
+    if (f->hist.w) return f->hist.window > 0 ? f->hist.window : (int)f->hist.pushed;
+    return f->def.d;
+}
+
+size_t stf_fluid_effect_bytes(const stf_fluid *f, unsigned effect)
+{
+    switch (effect) {
+    case STF_EFFECT_PRESSURE: return f->rho ? 2 * (size_t)f->cap * sizeof(double) : 0;
+    case STF_EFFECT_SPRINGS: return f->springs.n_alloc ? springs_bytes(&f->springs) : 0;
+    case STF_EFFECT_HISTORY:
+        return (f->hist.n_alloc ? history_bytes(&f->hist) : 0) +
+               (f->khist_mean ? (size_t)f->cap * sizeof(float) : 0);
+    default: return 0; /* gravity, viscosity and boundary_stick keep no storage */
+    }
+}
+
+double stf_fluid_effect_seconds(const stf_fluid *f, unsigned effect)
+{
+    switch (effect) {
+    case STF_EFFECT_GRAVITY: return f->stage_seconds[STAGE_GRAVITY];
+    case STF_EFFECT_VISCOSITY: return f->stage_seconds[STAGE_VISCOSITY];
+    case STF_EFFECT_PRESSURE: return f->stage_seconds[STAGE_PRESSURE];
+    case STF_EFFECT_SPRINGS: return f->stage_seconds[STAGE_SPRINGS];
+    case STF_EFFECT_HISTORY: return f->stage_seconds[STAGE_HISTORY];
+    case STF_EFFECT_BOUNDARY_STICK: return f->stage_seconds[STAGE_BOUNDARY];
+    default: return 0;
+    }
+}
+
+uint64_t stf_fluid_hash(const stf_fluid *f)
+{
+    /* In id order, so the periodic re-sorting of particles does not change the hash. */
+    uint64_t h = 1469598103934665603ull;
+    int32_t *where = malloc((size_t)(f->next_id > 0 ? f->next_id : 1) * sizeof *where);
+    if (!where) return 0;
+    for (int k = 0; k < f->next_id; k++) where[k] = -1;
+    for (int i = 0; i < f->n; i++) where[f->id[i]] = i;
+    for (int k = 0; k < f->next_id; k++) {
+        if (where[k] < 0) continue;
+        const unsigned char *p = (const unsigned char *)(f->x + 3 * where[k]);
+        for (size_t b = 0; b < 3 * sizeof(double); b++) h = (h ^ p[b]) * 1099511628211ull;
+        p = (const unsigned char *)(f->v + 3 * where[k]);
+        for (size_t b = 0; b < 3 * sizeof(double); b++) h = (h ^ p[b]) * 1099511628211ull;
+    }
+    free(where);
+    return h;
+}

@@ -1,0 +1,65 @@
+/* fluid.h - internal state of a fluid, shared by the effect files. */
+#ifndef STF_FLUID_INTERNAL_H
+#define STF_FLUID_INTERNAL_H
+
+#include "collider.h"
+#include "grid.h"
+#include "history.h"
+#include "springs.h"
+#include "stf.h"
+
+/* Indices of the per-stage timers (stf_fluid_effect_seconds). */
+enum stage {
+    STAGE_GRID,
+    STAGE_GRAVITY,
+    STAGE_VISCOSITY,
+    STAGE_SPRINGS,
+    STAGE_HISTORY,
+    STAGE_PRESSURE,
+    STAGE_COLLIDE,
+    STAGE_BOUNDARY,
+    STAGE_COUNT
+};
+
+struct stf_fluid {
+    stf_fluid_def def;
+    double h;            /* interaction radius, m */
+    double mass;         /* particle mass, kg */
+    double rest_density; /* kernel rest density used (def's, or the lattice's) */
+
+    int n, cap;
+    double *x, *v, *xprev; /* 3n, interleaved */
+    double *dx;            /* 3n scratch: displacements / impulses being gathered */
+    char *hit;             /* n scratch: particle touched the collider being processed */
+    int32_t *id;           /* persistent particle ids */
+    int next_id;
+
+    stf_grid grid;       /* neighbours within h, rebuilt every step */
+    stf_springs springs; /* allocated only with the springs effect */
+    stf_history hist;    /* allocated only with the history effect */
+    double *rho, *rho_near; /* n each, pressure effect only */
+    float *khist_mean;      /* n: mean history stiffness of a particle's springs, 1/s^2 */
+
+    int ncolliders, collider_cap;
+    collider *colliders;
+
+    double time;
+    double dt_now;       /* length of the step being taken, s */
+    long steps;
+    long reorder_interval; /* steps between re-sorting particles by cell */
+    double stage_seconds[STAGE_COUNT];
+    char failure[256];
+};
+
+/* The effect stages (one file each). */
+void viscosity_apply(stf_fluid *f, double dt);               /* viscosity.c */
+void pressure_relax(stf_fluid *f, double dt);                /* pressure.c */
+void collide_all(stf_fluid *f, double dt);                   /* collider.c */
+void boundary_stick(stf_fluid *f, double dt);                /* boundary.c */
+
+/* Permutes every per-particle array by perm (new index -> old index). */
+void fluid_permute(stf_fluid *f, const int32_t *perm);
+
+static inline int has(const stf_fluid *f, unsigned effect) { return (f->def.effects & effect) != 0; }
+
+#endif

@@ -1,0 +1,910 @@
+/* h5io.c - the HDF5 output file of a run (H5Part layout + XDMF sidecar) and its reader.
+ * See h5io.h for the layout. Every HDF5 id is closed before a function returns, so the
+ * file can be closed (or the process killed after a flush) at any point. */
+#include "h5io.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <hdf5.h>
+
+#define FRAME_PREFIX "Step#"
+#define FRAME_CHUNK 65536 /* particles per chunk of a frame dataset */
+#define BODY_CHUNK 256    /* rows per chunk of a body series */
+#define FORMAT_ATTR "stf_format"
+#define FORMAT_NAME "stf-h5part-1"
+
+static const char *const pos_names[3] = {"x", "y", "z"};
+static const char *const vel_names[3] = {"vx", "vy", "vz"};
+
+/* The six body series: dataset name and columns (0 = one-dimensional). */
+enum { BODY_SERIES = 6 };
+static const char *const body_names[BODY_SERIES] = {
+    "time", "position", "quaternion", "velocity", "angular_velocity", "fluid_force"};
+static const int body_cols[BODY_SERIES] = {0, 3, 4, 3, 3, 3};
+
+static void fmt_err(char *err, size_t errlen, const char *fmt, ...)
+{
+    if (!err || errlen == 0) return;
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(err, errlen, fmt, ap);
+    va_end(ap);
+}
+
+static char *dup_str(const char *s)
+{
+    size_t len = strlen(s) + 1;
+    char *d = malloc(len);
+    if (d) memcpy(d, s, len);
+    return d;
+}
+
+/* Closes an HDF5 id of any kind if it is valid (error paths close partial state). */
+static void close_id(hid_t id)
+{
+    if (id < 0) return;
+    switch (H5Iget_type(id)) {
+    case H5I_FILE: H5Fclose(id); break;
+    case H5I_GROUP: H5Gclose(id); break;
+    case H5I_DATASET: H5Dclose(id); break;
+    case H5I_DATASPACE: H5Sclose(id); break;
+    case H5I_DATATYPE: H5Tclose(id); break;
+    case H5I_ATTR: H5Aclose(id); break;
+    case H5I_GENPROP_LST: H5Pclose(id); break;
+    default: break;
+    }
+}
+
+/* ====================================================================================
+ * writer
+ * ==================================================================================== */
+
+typedef struct frame_info {
+    double t;
+    int n;
+    int has_khist, has_id;
+} frame_info;
+
+struct stf_h5 {
+    hid_t file;
+    char *path;
+    frame_info *frames;
+    int nframes, cap;
+    char err[256];
+};
+
+const char *stf_h5_last_error(const stf_h5 *h) { return h ? h->err : "no file"; }
+
+int stf_h5_create(const char *path, stf_h5 **out, char *err, size_t errlen)
+{
+    *out = NULL;
+    H5Eset_auto2(H5E_DEFAULT, NULL, NULL); /* we report errors ourselves */
+    stf_h5 *h = calloc(1, sizeof *h);
+    if (!h || !(h->path = dup_str(path))) {
+        free(h);
+        fmt_err(err, errlen, "%s: out of memory", path);
+        return -1;
+    }
+    /* Probe with stdio first: HDF5's own failure says nothing about why. */
+    FILE *probe = fopen(path, "wb");
+    if (!probe) {
+        fmt_err(err, errlen, "%s: %s", path, strerror(errno));
+        free(h->path);
+        free(h);
+        return -1;
+    }
+    fclose(probe);
+    /* Default (earliest) format: no superblock status flags, so a file left by a killed
+     * writer opens without h5clear. */
+    h->file = H5Fcreate(path, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    if (h->file < 0) {
+        fmt_err(err, errlen, "%s: cannot create HDF5 file", path);
+        free(h->path);
+        free(h);
+        return -1;
+    }
+    if (stf_h5_attr_string(h, FORMAT_ATTR, FORMAT_NAME) != 0) {
+        fmt_err(err, errlen, "%s: %s", path, h->err);
+        stf_h5_abort(h);
+        return -1;
+    }
+    *out = h;
+    return 0;
+}
+
+/* Writes a scalar attribute on obj, replacing one of the same name. */
+static int put_attr(hid_t obj, const char *name, hid_t ftype, hid_t mtype, const void *buf)
+{
+    htri_t exists = H5Aexists(obj, name);
+    if (exists < 0 || (exists > 0 && H5Adelete(obj, name) < 0)) return -1;
+    hid_t space = H5Screate(H5S_SCALAR);
+    hid_t a = space < 0 ? -1 : H5Acreate2(obj, name, ftype, space, H5P_DEFAULT, H5P_DEFAULT);
+    int rc = (a >= 0 && H5Awrite(a, mtype, buf) >= 0) ? 0 : -1;
+    close_id(a);
+    close_id(space);
+    return rc;
+}
+
+/* Variable-length UTF-8 string: no 64 KiB attribute limit (the text lives in the global
+ * heap) and h5py reads it as str. */
+static int put_attr_string(hid_t obj, const char *name, const char *value)
+{
+    hid_t t = H5Tcopy(H5T_C_S1);
+    if (t < 0) return -1;
+    int rc = -1;
+    if (H5Tset_size(t, H5T_VARIABLE) >= 0 && H5Tset_cset(t, H5T_CSET_UTF8) >= 0)
+        rc = put_attr(obj, name, t, t, &value);
+    H5Tclose(t);
+    return rc;
+}
+
+static int bad_args(stf_h5 *h, const char *name)
+{
+    if (!h) return 1;
+    if (!name || !*name) {
+        snprintf(h->err, sizeof h->err, "empty attribute name");
+        return 1;
+    }
+    return 0;
+}
+
+int stf_h5_attr_string(stf_h5 *h, const char *name, const char *value)
+{
+    if (bad_args(h, name)) return -1;
+    if (put_attr_string(h->file, name, value ? value : "") == 0) return 0;
+    snprintf(h->err, sizeof h->err, "cannot write attribute %s", name);
+    return -1;
+}
+
+int stf_h5_attr_double(stf_h5 *h, const char *name, double value)
+{
+    if (bad_args(h, name)) return -1;
+    if (put_attr(h->file, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, &value) == 0) return 0;
+    snprintf(h->err, sizeof h->err, "cannot write attribute %s", name);
+    return -1;
+}
+
+int stf_h5_attr_long(stf_h5 *h, const char *name, long value)
+{
+    if (bad_args(h, name)) return -1;
+    if (put_attr(h->file, name, H5T_STD_I64LE, H5T_NATIVE_LONG, &value) == 0) return 0;
+    snprintf(h->err, sizeof h->err, "cannot write attribute %s", name);
+    return -1;
+}
+
+/* Writes a 1-D dataset of n elements. Chunked + shuffle + deflate when n > 0; an empty
+ * dataset stays contiguous (a chunk size of 0 is invalid). */
+static int write_1d(hid_t g, const char *name, hid_t ftype, hid_t mtype, hsize_t n,
+                    const void *buf)
+{
+    hid_t space = H5Screate_simple(1, &n, NULL);
+    hid_t dcpl = H5Pcreate(H5P_DATASET_CREATE);
+    hid_t d = -1;
+    int rc = -1;
+    if (space < 0 || dcpl < 0) goto done;
+    if (n > 0) {
+        hsize_t chunk = n < FRAME_CHUNK ? n : FRAME_CHUNK;
+        if (H5Pset_chunk(dcpl, 1, &chunk) < 0 || H5Pset_shuffle(dcpl) < 0 ||
+            H5Pset_deflate(dcpl, 4) < 0)
+            goto done;
+    }
+    d = H5Dcreate2(g, name, ftype, space, H5P_DEFAULT, dcpl, H5P_DEFAULT);
+    if (d < 0) goto done;
+    if (n > 0 && H5Dwrite(d, mtype, H5S_ALL, H5S_ALL, H5P_DEFAULT, buf) < 0) goto done;
+    rc = 0;
+done:
+    close_id(d);
+    close_id(dcpl);
+    close_id(space);
+    return rc;
+}
+
+/* Writes component c of the interleaved array src (3*n) as float32 dataset name. */
+static int write_component(hid_t g, const char *name, int n, const double *src, int c,
+                           float *buf)
+{
+    for (int i = 0; i < n; i++) buf[i] = (float)src[3 * i + c];
+    return write_1d(g, name, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, (hsize_t)n, buf);
+}
+
+static int frame_datasets(hid_t g, int n, const double *xyz, const double *v,
+                          const float *khist, const int32_t *id)
+{
+    float *buf = malloc((size_t)(n > 0 ? n : 1) * sizeof *buf);
+    if (!buf) return -1;
+    int rc = 0;
+    for (int c = 0; c < 3 && rc == 0; c++) rc = write_component(g, pos_names[c], n, xyz, c, buf);
+    for (int c = 0; c < 3 && rc == 0; c++) rc = write_component(g, vel_names[c], n, v, c, buf);
+    free(buf);
+    if (rc == 0 && khist)
+        rc = write_1d(g, "khist", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, (hsize_t)n, khist);
+    if (rc == 0 && id)
+        rc = write_1d(g, "id", H5T_STD_I32LE, H5T_NATIVE_INT32, (hsize_t)n, id);
+    return rc;
+}
+
+static int remember_frame(stf_h5 *h, double t, int n, int has_khist, int has_id)
+{
+    if (h->nframes == h->cap) {
+        int cap = h->cap ? 2 * h->cap : 64;
+        frame_info *f = realloc(h->frames, (size_t)cap * sizeof *f);
+        if (!f) return -1;
+        h->frames = f;
+        h->cap = cap;
+    }
+    h->frames[h->nframes++] = (frame_info){t, n, has_khist, has_id};
+    return 0;
+}
+
+int stf_h5_write_frame(stf_h5 *h, double t, int n, const double *xyz, const double *v,
+                       const float *khist, const int32_t *id)
+{
+    if (!h) return -1;
+    if (n < 0 || (n > 0 && (!xyz || !v))) {
+        snprintf(h->err, sizeof h->err, "frame %d: bad arguments", h->nframes);
+        return -1;
+    }
+    char gname[32];
+    snprintf(gname, sizeof gname, FRAME_PREFIX "%d", h->nframes);
+    hid_t g = H5Gcreate2(h->file, gname, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    /* TimeValue goes last: the reader treats a group without it as incomplete. */
+    int rc = (g >= 0 && frame_datasets(g, n, xyz, v, khist, id) == 0 &&
+              put_attr(g, "TimeValue", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, &t) == 0)
+                 ? 0 : -1;
+    close_id(g);
+    if (rc == 0 && H5Fflush(h->file, H5F_SCOPE_GLOBAL) < 0) rc = -1;
+    if (rc == 0) rc = remember_frame(h, t, n, khist != NULL, id != NULL);
+    if (rc != 0) snprintf(h->err, sizeof h->err, "cannot write frame %s", gname);
+    return rc;
+}
+
+/* Opens group name under parent, creating it if absent. */
+static hid_t open_or_create_group(hid_t parent, const char *name, int *created)
+{
+    htri_t exists = H5Lexists(parent, name, H5P_DEFAULT);
+    if (created) *created = exists == 0;
+    if (exists < 0) return -1;
+    if (exists) return H5Gopen2(parent, name, H5P_DEFAULT);
+    return H5Gcreate2(parent, name, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+}
+
+/* Creates an empty extendible series of `cols` columns (0 = 1-D). */
+static int create_series(hid_t g, const char *name, int cols)
+{
+    int rank = cols ? 2 : 1;
+    hsize_t dims[2] = {0, (hsize_t)cols}, maxd[2] = {H5S_UNLIMITED, (hsize_t)cols};
+    hsize_t chunk[2] = {BODY_CHUNK, (hsize_t)cols};
+    hid_t space = H5Screate_simple(rank, dims, maxd);
+    hid_t dcpl = H5Pcreate(H5P_DATASET_CREATE);
+    hid_t d = -1;
+    if (space >= 0 && dcpl >= 0 && H5Pset_chunk(dcpl, rank, chunk) >= 0)
+        d = H5Dcreate2(g, name, H5T_IEEE_F64LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT);
+    int rc = d >= 0 ? 0 : -1;
+    close_id(d);
+    close_id(dcpl);
+    close_id(space);
+    return rc;
+}
+
+/* Appends one row (cols values, or 1 for a 1-D series) to series name in g. */
+static int append_row(hid_t g, const char *name, int cols, const double *row)
+{
+    hid_t d = H5Dopen2(g, name, H5P_DEFAULT);
+    hid_t fspace = -1, mspace = -1;
+    int rc = -1, rank = cols ? 2 : 1;
+    hsize_t dims[2] = {0, 0};
+    if (d < 0) goto done;
+    fspace = H5Dget_space(d);
+    if (fspace < 0 || H5Sget_simple_extent_dims(fspace, dims, NULL) != rank) goto done;
+    H5Sclose(fspace);
+    fspace = -1;
+    dims[0]++;
+    if (H5Dset_extent(d, dims) < 0 || (fspace = H5Dget_space(d)) < 0) goto done;
+    hsize_t start[2] = {dims[0] - 1, 0}, count[2] = {1, (hsize_t)cols};
+    if (H5Sselect_hyperslab(fspace, H5S_SELECT_SET, start, NULL, count, NULL) < 0) goto done;
+    mspace = H5Screate_simple(rank, count, NULL);
+    if (mspace >= 0 && H5Dwrite(d, H5T_NATIVE_DOUBLE, mspace, fspace, H5P_DEFAULT, row) >= 0)
+        rc = 0;
+done:
+    close_id(mspace);
+    close_id(fspace);
+    close_id(d);
+    return rc;
+}
+
+static int body_rows(hid_t body, int created, const double *const rows[BODY_SERIES])
+{
+    for (int s = 0; s < BODY_SERIES; s++) {
+        if (created && create_series(body, body_names[s], body_cols[s]) != 0) return -1;
+        if (append_row(body, body_names[s], body_cols[s], rows[s]) != 0) return -1;
+    }
+    return 0;
+}
+
+int stf_h5_body_append(stf_h5 *h, const char *name, double t, const double pos[3],
+                       const double quat[4], const double vel[3], const double angvel[3],
+                       const double force[3])
+{
+    if (!h) return -1;
+    if (!name || !*name || strchr(name, '/') || !strcmp(name, ".")) {
+        snprintf(h->err, sizeof h->err, "bad body name \"%s\"", name ? name : "(null)");
+        return -1;
+    }
+    const double *const rows[BODY_SERIES] = {&t, pos, quat, vel, angvel, force};
+    int created = 0;
+    hid_t bodies = open_or_create_group(h->file, "bodies", NULL);
+    hid_t body = bodies < 0 ? -1 : open_or_create_group(bodies, name, &created);
+    int rc = body >= 0 ? body_rows(body, created, rows) : -1;
+    close_id(body);
+    close_id(bodies);
+    if (rc == 0 && H5Fflush(h->file, H5F_SCOPE_GLOBAL) < 0) rc = -1;
+    if (rc != 0) snprintf(h->err, sizeof h->err, "cannot append to /bodies/%s", name);
+    return rc;
+}
+
+int stf_h5_write_metrics_json(stf_h5 *h, const char *json)
+{
+    if (!h) return -1;
+    hid_t g = open_or_create_group(h->file, "metrics", NULL);
+    int rc = g >= 0 ? put_attr_string(g, "json", json ? json : "") : -1;
+    close_id(g);
+    if (rc == 0 && H5Fflush(h->file, H5F_SCOPE_GLOBAL) < 0) rc = -1;
+    if (rc != 0) snprintf(h->err, sizeof h->err, "cannot write /metrics");
+    return rc;
+}
+
+/* ---- XDMF sidecar ---- */
+
+/* OUT.h5 -> OUT.xmf (an extension is a dot in the last path component, not leading). */
+static char *sidecar_path(const char *path)
+{
+    const char *slash = strrchr(path, '/');
+    const char *base = slash ? slash + 1 : path;
+    const char *dot = strrchr(base, '.');
+    size_t stem = (dot && dot != base) ? (size_t)(dot - path) : strlen(path);
+    char *x = malloc(stem + 5);
+    if (!x) return NULL;
+    memcpy(x, path, stem);
+    memcpy(x + stem, ".xmf", 5);
+    return x;
+}
+
+static void xml_escaped(FILE *f, const char *s)
+{
+    for (; *s; s++) {
+        switch (*s) {
+        case '&': fputs("&amp;", f); break;
+        case '<': fputs("&lt;", f); break;
+        case '>': fputs("&gt;", f); break;
+        case '"': fputs("&quot;", f); break;
+        default: fputc(*s, f);
+        }
+    }
+}
+
+static void xdmf_item(FILE *f, const char *h5name, int frame, const char *ds, int n,
+                      const char *type)
+{
+    fprintf(f, "          <DataItem Dimensions=\"%d\" %s Format=\"HDF\">", n, type);
+    xml_escaped(f, h5name);
+    fprintf(f, ":/" FRAME_PREFIX "%d/%s</DataItem>\n", frame, ds);
+}
+
+static void xdmf_attribute(FILE *f, const char *h5name, int frame, const char *ds, int n,
+                           const char *type)
+{
+    fprintf(f, "        <Attribute Name=\"%s\" AttributeType=\"Scalar\" Center=\"Node\">\n", ds);
+    xdmf_item(f, h5name, frame, ds, n, type);
+    fputs("        </Attribute>\n", f);
+}
+
+static const char f32[] = "NumberType=\"Float\" Precision=\"4\"";
+static const char i32[] = "NumberType=\"Int\" Precision=\"4\"";
+
+static void xdmf_grid(FILE *f, const char *h5name, int i, const frame_info *fr)
+{
+    if (fr->n == 0) {
+        /* XDMF readers reject zero-length arrays: mention the frame, but as a comment. */
+        fprintf(f, "      <!-- " FRAME_PREFIX "%d: t = %.17g, no particles -->\n", i, fr->t);
+        return;
+    }
+    fprintf(f, "      <Grid Name=\"" FRAME_PREFIX "%d\" GridType=\"Uniform\">\n", i);
+    fprintf(f, "        <Time Value=\"%.17g\"/>\n", fr->t);
+    fprintf(f, "        <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"%d\" "
+               "NodesPerElement=\"1\"/>\n", fr->n);
+    fputs("        <Geometry GeometryType=\"X_Y_Z\">\n", f);
+    for (int c = 0; c < 3; c++) xdmf_item(f, h5name, i, pos_names[c], fr->n, f32);
+    fputs("        </Geometry>\n", f);
+    for (int c = 0; c < 3; c++) xdmf_attribute(f, h5name, i, vel_names[c], fr->n, f32);
+    if (fr->has_khist) xdmf_attribute(f, h5name, i, "khist", fr->n, f32);
+    if (fr->has_id) xdmf_attribute(f, h5name, i, "id", fr->n, i32);
+    fputs("      </Grid>\n", f);
+}
+
+static int write_xdmf(const stf_h5 *h, char *err, size_t errlen)
+{
+    char *xpath = sidecar_path(h->path);
+    if (!xpath) {
+        fmt_err(err, errlen, "%s: out of memory", h->path);
+        return -1;
+    }
+    FILE *f = fopen(xpath, "w");
+    if (!f) {
+        fmt_err(err, errlen, "%s: %s", xpath, strerror(errno));
+        free(xpath);
+        return -1;
+    }
+    /* The data paths are relative to the sidecar, which sits next to the .h5 file. */
+    const char *slash = strrchr(h->path, '/');
+    const char *h5name = slash ? slash + 1 : h->path;
+    fputs("<?xml version=\"1.0\" ?>\n<!DOCTYPE Xdmf SYSTEM \"Xdmf.dtd\" []>\n"
+          "<Xdmf Version=\"2.0\">\n  <Domain>\n"
+          "    <Grid Name=\"particles\" GridType=\"Collection\" CollectionType=\"Temporal\">\n",
+          f);
+    for (int i = 0; i < h->nframes; i++) xdmf_grid(f, h5name, i, &h->frames[i]);
+    fputs("    </Grid>\n  </Domain>\n</Xdmf>\n", f);
+    int bad = ferror(f);
+    if (fclose(f) != 0 || bad) {
+        fmt_err(err, errlen, "%s: write error", xpath);
+        free(xpath);
+        return -1;
+    }
+    free(xpath);
+    return 0;
+}
+
+static void free_writer(stf_h5 *h)
+{
+    free(h->frames);
+    free(h->path);
+    free(h);
+}
+
+int stf_h5_close(stf_h5 *h, char *err, size_t errlen)
+{
+    if (!h) return 0;
+    int rc = write_xdmf(h, err, errlen);
+    if (H5Fclose(h->file) < 0 && rc == 0) {
+        fmt_err(err, errlen, "%s: error closing HDF5 file", h->path);
+        rc = -1;
+    }
+    free_writer(h);
+    return rc;
+}
+
+void stf_h5_abort(stf_h5 *h)
+{
+    if (!h) return;
+    H5Fclose(h->file);
+    free_writer(h);
+}
+
+/* ====================================================================================
+ * reader
+ * ==================================================================================== */
+
+typedef struct rframe {
+    long step; /* N of Step#N */
+    double t;
+    int n;
+} rframe;
+
+struct stf_h5r {
+    hid_t file;
+    rframe *frames;
+    int nframes;
+    char **bodies;
+    int nbodies;
+};
+
+/* A growing list of names, filled by H5Literate. */
+typedef struct name_list {
+    char **names;
+    int count, cap;
+    int failed;
+} name_list;
+
+static herr_t collect_name(hid_t g, const char *name, const H5L_info_t *info, void *data)
+{
+    (void)g;
+    (void)info;
+    name_list *l = data;
+    if (l->count == l->cap) {
+        int cap = l->cap ? 2 * l->cap : 64;
+        char **p = realloc(l->names, (size_t)cap * sizeof *p);
+        if (!p) {
+            l->failed = 1;
+            return -1;
+        }
+        l->names = p;
+        l->cap = cap;
+    }
+    if (!(l->names[l->count] = dup_str(name))) {
+        l->failed = 1;
+        return -1;
+    }
+    l->count++;
+    return 0;
+}
+
+static void free_names(char **names, int count)
+{
+    for (int i = 0; i < count; i++) free(names[i]);
+    free(names);
+}
+
+static int list_names(hid_t g, name_list *l)
+{
+    memset(l, 0, sizeof *l);
+    hsize_t idx = 0;
+    if (H5Literate(g, H5_INDEX_NAME, H5_ITER_INC, &idx, collect_name, l) < 0 || l->failed) {
+        free_names(l->names, l->count);
+        memset(l, 0, sizeof *l);
+        return -1;
+    }
+    return 0;
+}
+
+/* "Step#N" with N a plain non-negative decimal -> N, else -1. */
+static long frame_step(const char *name)
+{
+    size_t plen = strlen(FRAME_PREFIX);
+    if (strncmp(name, FRAME_PREFIX, plen) != 0) return -1;
+    const char *digits = name + plen;
+    if (*digits < '0' || *digits > '9') return -1;
+    char *end;
+    errno = 0;
+    long n = strtol(digits, &end, 10);
+    return (*end || errno) ? -1 : n;
+}
+
+/* Number of elements of a 1-D dataset, or -1 (absent, wrong rank, too large). */
+static long dataset_len_1d(hid_t g, const char *name)
+{
+    if (H5Lexists(g, name, H5P_DEFAULT) <= 0) return -1;
+    hid_t d = H5Dopen2(g, name, H5P_DEFAULT);
+    hid_t s = d < 0 ? -1 : H5Dget_space(d);
+    hsize_t dim = 0;
+    long len = -1;
+    if (s >= 0 && H5Sget_simple_extent_ndims(s) == 1 &&
+        H5Sget_simple_extent_dims(s, &dim, NULL) == 1 && dim <= 0x7fffffff)
+        len = (long)dim;
+    close_id(s);
+    close_id(d);
+    return len;
+}
+
+static int read_attr_double(hid_t obj, const char *name, double *value)
+{
+    if (H5Aexists(obj, name) <= 0) return -1;
+    hid_t a = H5Aopen(obj, name, H5P_DEFAULT);
+    hid_t s = a < 0 ? -1 : H5Aget_space(a);
+    int rc = -1;
+    if (s >= 0 && H5Sget_simple_extent_npoints(s) == 1 &&
+        H5Aread(a, H5T_NATIVE_DOUBLE, value) >= 0)
+        rc = 0;
+    close_id(s);
+    close_id(a);
+    return rc;
+}
+
+/* A frame is complete when it has TimeValue and six datasets of one common length. */
+static int probe_frame(hid_t file, const char *name, rframe *fr)
+{
+    hid_t g = H5Gopen2(file, name, H5P_DEFAULT);
+    if (g < 0) return -1;
+    int ok = read_attr_double(g, "TimeValue", &fr->t) == 0;
+    long n = dataset_len_1d(g, "x");
+    for (int c = 0; c < 3 && ok; c++)
+        ok = dataset_len_1d(g, pos_names[c]) == n && dataset_len_1d(g, vel_names[c]) == n;
+    H5Gclose(g);
+    if (!ok || n < 0) return -1;
+    fr->n = (int)n;
+    return 0;
+}
+
+static int cmp_frame(const void *a, const void *b)
+{
+    long x = ((const rframe *)a)->step, y = ((const rframe *)b)->step;
+    return (x > y) - (x < y);
+}
+
+static int scan_frames(stf_h5r *r, const name_list *root)
+{
+    r->frames = malloc((size_t)(root->count > 0 ? root->count : 1) * sizeof *r->frames);
+    if (!r->frames) return -1;
+    for (int i = 0; i < root->count; i++) {
+        rframe fr = {frame_step(root->names[i]), 0, 0};
+        if (fr.step >= 0 && probe_frame(r->file, root->names[i], &fr) == 0)
+            r->frames[r->nframes++] = fr;
+    }
+    qsort(r->frames, (size_t)r->nframes, sizeof *r->frames, cmp_frame);
+    return 0;
+}
+
+static int scan_bodies(stf_h5r *r)
+{
+    if (H5Lexists(r->file, "bodies", H5P_DEFAULT) <= 0) return 0;
+    hid_t g = H5Gopen2(r->file, "bodies", H5P_DEFAULT);
+    if (g < 0) return 0; /* not a group: ignore */
+    name_list l;
+    int rc = list_names(g, &l);
+    H5Gclose(g);
+    r->bodies = l.names;
+    r->nbodies = l.count;
+    return rc;
+}
+
+/* Why the file is not ours, or NULL if it is. */
+static const char *check_layout(stf_h5r *r)
+{
+    name_list root;
+    if (list_names(r->file, &root) != 0) return "cannot list the root group";
+    int has_frame_group = 0;
+    for (int i = 0; i < root.count; i++) has_frame_group |= frame_step(root.names[i]) >= 0;
+    int ours = has_frame_group || H5Aexists(r->file, FORMAT_ATTR) > 0;
+    int rc = ours ? scan_frames(r, &root) : 0;
+    free_names(root.names, root.count);
+    if (!ours) return "no " FRAME_PREFIX "N groups";
+    if (rc != 0 || scan_bodies(r) != 0) return "cannot read its index";
+    return NULL;
+}
+
+int stf_h5r_open(const char *path, stf_h5r **out, char *err, size_t errlen)
+{
+    *out = NULL;
+    H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+    FILE *probe = fopen(path, "rb"); /* a missing file deserves its errno */
+    if (!probe) {
+        fmt_err(err, errlen, "%s: %s", path, strerror(errno));
+        return -1;
+    }
+    fclose(probe);
+    stf_h5r *r = calloc(1, sizeof *r);
+    if (!r) {
+        fmt_err(err, errlen, "%s: out of memory", path);
+        return -1;
+    }
+    r->file = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
+    if (r->file < 0) {
+        fmt_err(err, errlen, "%s: not an stf output file (not a readable HDF5 file)", path);
+        free(r);
+        return -1;
+    }
+    const char *why = check_layout(r);
+    if (why) {
+        fmt_err(err, errlen, "%s: not an stf output file (%s)", path, why);
+        stf_h5r_close(r);
+        return -1;
+    }
+    *out = r;
+    return 0;
+}
+
+void stf_h5r_close(stf_h5r *r)
+{
+    if (!r) return;
+    close_id(r->file);
+    free(r->frames);
+    free_names(r->bodies, r->nbodies);
+    free(r);
+}
+
+int stf_h5r_frames(const stf_h5r *r) { return r ? r->nframes : 0; }
+
+static const rframe *get_frame(const stf_h5r *r, int frame)
+{
+    return (r && frame >= 0 && frame < r->nframes) ? &r->frames[frame] : NULL;
+}
+
+double stf_h5r_frame_time(const stf_h5r *r, int frame)
+{
+    const rframe *fr = get_frame(r, frame);
+    return fr ? fr->t : NAN;
+}
+
+int stf_h5r_frame_count(const stf_h5r *r, int frame)
+{
+    const rframe *fr = get_frame(r, frame);
+    return fr ? fr->n : -1;
+}
+
+static hid_t open_frame_group(const stf_h5r *r, const rframe *fr)
+{
+    char gname[32];
+    snprintf(gname, sizeof gname, FRAME_PREFIX "%ld", fr->step);
+    return H5Gopen2(r->file, gname, H5P_DEFAULT);
+}
+
+/* Reads three 1-D datasets into the interleaved out[3n], converting to double; the memory
+ * hyperslab (start c, stride 3) does the interleaving without a temporary. */
+static int read_interleaved(hid_t g, const char *const names[3], int n, double *out)
+{
+    hsize_t mdim = 3 * (hsize_t)n;
+    hid_t mspace = H5Screate_simple(1, &mdim, NULL);
+    int rc = mspace < 0 ? -1 : 0;
+    for (int c = 0; c < 3 && rc == 0; c++) {
+        hsize_t start = (hsize_t)c, stride = 3, count = (hsize_t)n;
+        hid_t d = H5Dopen2(g, names[c], H5P_DEFAULT);
+        if (d < 0 ||
+            H5Sselect_hyperslab(mspace, H5S_SELECT_SET, &start, &stride, &count, NULL) < 0 ||
+            H5Dread(d, H5T_NATIVE_DOUBLE, mspace, H5S_ALL, H5P_DEFAULT, out) < 0)
+            rc = -1;
+        close_id(d);
+    }
+    close_id(mspace);
+    return rc;
+}
+
+int stf_h5r_read_frame(const stf_h5r *r, int frame, double *xyz, double *v)
+{
+    const rframe *fr = get_frame(r, frame);
+    if (!fr) return -1;
+    if (fr->n == 0 || (!xyz && !v)) return 0;
+    hid_t g = open_frame_group(r, fr);
+    if (g < 0) return -1;
+    int rc = 0;
+    if (xyz) rc = read_interleaved(g, pos_names, fr->n, xyz);
+    if (rc == 0 && v) rc = read_interleaved(g, vel_names, fr->n, v);
+    H5Gclose(g);
+    return rc;
+}
+
+int stf_h5r_read_khist(const stf_h5r *r, int frame, float *k)
+{
+    const rframe *fr = get_frame(r, frame);
+    if (!fr) return -1;
+    hid_t g = open_frame_group(r, fr);
+    if (g < 0) return -1;
+    int rc = dataset_len_1d(g, "khist") == fr->n ? 0 : -1;
+    if (rc == 0 && fr->n > 0) {
+        hid_t d = H5Dopen2(g, "khist", H5P_DEFAULT);
+        if (d < 0 || H5Dread(d, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, k) < 0)
+            rc = -1;
+        close_id(d);
+    }
+    H5Gclose(g);
+    return rc;
+}
+
+int stf_h5r_attr_double(const stf_h5r *r, const char *name, double *value)
+{
+    return r ? read_attr_double(r->file, name, value) : -1;
+}
+
+/* Reads a scalar string attribute of either kind (variable or fixed length). */
+static char *read_string(hid_t a, hid_t ftype)
+{
+    char *s = NULL;
+    hid_t mt = H5Tcopy(H5T_C_S1);
+    /* HDF5 does not convert between character sets: read in the file's. */
+    if (mt < 0) return NULL;
+    if (H5Tset_cset(mt, H5Tget_cset(ftype)) < 0) {
+        H5Tclose(mt);
+        return NULL;
+    }
+    if (H5Tis_variable_str(ftype) > 0) {
+        char *vs = NULL;
+        if (H5Tset_size(mt, H5T_VARIABLE) >= 0 && H5Aread(a, mt, &vs) >= 0 && vs) {
+            s = dup_str(vs);
+            H5free_memory(vs);
+        }
+    } else {
+        size_t size = H5Tget_size(ftype);
+        s = calloc(size + 1, 1); /* fixed strings need not be terminated */
+        if (s && (H5Tset_size(mt, size + 1) < 0 || H5Aread(a, mt, s) < 0)) {
+            free(s);
+            s = NULL;
+        }
+    }
+    H5Tclose(mt);
+    return s;
+}
+
+char *stf_h5r_attr_string(const stf_h5r *r, const char *name)
+{
+    if (!r || H5Aexists(r->file, name) <= 0) return NULL;
+    hid_t a = H5Aopen(r->file, name, H5P_DEFAULT);
+    hid_t t = a < 0 ? -1 : H5Aget_type(a);
+    hid_t s = a < 0 ? -1 : H5Aget_space(a);
+    char *out = NULL;
+    if (t >= 0 && s >= 0 && H5Tget_class(t) == H5T_STRING &&
+        H5Sget_simple_extent_npoints(s) == 1)
+        out = read_string(a, t);
+    close_id(s);
+    close_id(t);
+    close_id(a);
+    return out;
+}
+
+int stf_h5r_body_count(const stf_h5r *r) { return r ? r->nbodies : 0; }
+
+const char *stf_h5r_body_name(const stf_h5r *r, int i)
+{
+    return (r && i >= 0 && i < r->nbodies) ? r->bodies[i] : NULL;
+}
+
+/* Rows of series s in body g if its shape is right, else -1. */
+static long series_rows(hid_t g, int s)
+{
+    hid_t d = H5Dopen2(g, body_names[s], H5P_DEFAULT);
+    hid_t sp = d < 0 ? -1 : H5Dget_space(d);
+    int rank = body_cols[s] ? 2 : 1;
+    hsize_t dims[2] = {0, 0};
+    long rows = -1;
+    if (sp >= 0 && H5Sget_simple_extent_dims(sp, dims, NULL) == rank &&
+        (rank == 1 || dims[1] == (hsize_t)body_cols[s]) && dims[0] <= 0x7fffffff)
+        rows = (long)dims[0];
+    close_id(sp);
+    close_id(d);
+    return rows;
+}
+
+/* Reads the first `rows` rows of series s into a new array. */
+static double *read_series(hid_t g, int s, long rows)
+{
+    int cols = body_cols[s] ? body_cols[s] : 1, rank = body_cols[s] ? 2 : 1;
+    double *buf = malloc((size_t)(rows > 0 ? rows : 1) * (size_t)cols * sizeof *buf);
+    if (!buf || rows == 0) return buf;
+    hsize_t start[2] = {0, 0}, count[2] = {(hsize_t)rows, (hsize_t)cols};
+    hid_t d = H5Dopen2(g, body_names[s], H5P_DEFAULT);
+    hid_t fs = d < 0 ? -1 : H5Dget_space(d);
+    hid_t ms = H5Screate_simple(rank, count, NULL);
+    int ok = fs >= 0 && ms >= 0 &&
+             H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, NULL, count, NULL) >= 0 &&
+             H5Dread(d, H5T_NATIVE_DOUBLE, ms, fs, H5P_DEFAULT, buf) >= 0;
+    close_id(ms);
+    close_id(fs);
+    close_id(d);
+    if (!ok) {
+        free(buf);
+        return NULL;
+    }
+    return buf;
+}
+
+static hid_t open_body(const stf_h5r *r, const char *name)
+{
+    for (int i = 0; i < r->nbodies; i++) {
+        if (strcmp(r->bodies[i], name) != 0) continue;
+        hid_t b = H5Gopen2(r->file, "bodies", H5P_DEFAULT);
+        hid_t g = b < 0 ? -1 : H5Gopen2(b, name, H5P_DEFAULT);
+        close_id(b);
+        return g;
+    }
+    return -1;
+}
+
+int stf_h5r_body_series(const stf_h5r *r, const char *name, double **time, double **pos,
+                        double **quat, double **vel, double **angvel, double **force)
+{
+    double **outs[BODY_SERIES] = {time, pos, quat, vel, angvel, force};
+    for (int s = 0; s < BODY_SERIES; s++)
+        if (outs[s]) *outs[s] = NULL;
+    hid_t g = r && name ? open_body(r, name) : -1;
+    if (g < 0) return -1;
+    /* A kill between two datasets' appends leaves them one row apart: use the shortest. */
+    long rows = 0x7fffffff;
+    for (int s = 0; s < BODY_SERIES && rows >= 0; s++) {
+        long k = series_rows(g, s);
+        rows = k < rows ? k : rows;
+    }
+    int rc = rows >= 0 ? 0 : -1;
+    for (int s = 0; s < BODY_SERIES && rc == 0; s++)
+        if (outs[s] && !(*outs[s] = read_series(g, s, rows))) rc = -1;
+    H5Gclose(g);
+    if (rc != 0) {
+        for (int s = 0; s < BODY_SERIES; s++)
+            if (outs[s]) {
+                free(*outs[s]);
+                *outs[s] = NULL;
+            }
+        return -1;
+    }
+    return (int)rows;
+}

@@ -1,0 +1,98 @@
+/* h5io.h - internal: the HDF5 output file of a run (H5Part layout) and its reader.
+ *
+ * Layout written by stf_h5_*:
+ *   /                     root attributes (scene text, version, parameters, statistics)
+ *   /Step#N               one group per frame, N = 0, 1, ... ; attribute TimeValue (double)
+ *     x y z vx vy vz      float32[n]; optional khist float32[n], id int32[n]
+ *   /bodies/NAME          extendible double series: time[N], position[N][3],
+ *                         quaternion[N][4] (w x y z), velocity[N][3],
+ *                         angular_velocity[N][3], fluid_force[N][3]
+ *   /metrics              string attribute "json"
+ * plus an XDMF sidecar OUT.xmf next to OUT.h5 (written by stf_h5_close) for ParaView.
+ *
+ * The file is flushed after every frame and body row, so a killed run leaves a file that
+ * stf_h5r_open can read up to the last complete frame.
+ */
+#ifndef STF_H5IO_H
+#define STF_H5IO_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---- writer ---- */
+
+typedef struct stf_h5 stf_h5;
+
+/* Creates (truncates) path. Returns 0, or -1 with "PATH: why" in err. */
+int stf_h5_create(const char *path, stf_h5 **out, char *err, size_t errlen);
+
+/* Root attributes; an attribute of the same name is replaced. Return 0 or -1. */
+int stf_h5_attr_string(stf_h5 *h, const char *name, const char *value);
+int stf_h5_attr_double(stf_h5 *h, const char *name, double value);
+int stf_h5_attr_long(stf_h5 *h, const char *name, long value);
+
+/* Appends frame /Step#N at time t: n particles, xyz and v interleaved (3*n doubles each,
+ * stored as float32); khist and id may be NULL. n may be 0. Flushes. Returns 0 or -1. */
+int stf_h5_write_frame(stf_h5 *h, double t, int n, const double *xyz, const double *v,
+                       const float *khist, const int32_t *id);
+
+/* Appends one row to /bodies/NAME (created on first call). NAME must not contain '/'.
+ * Flushes. Returns 0 or -1. */
+int stf_h5_body_append(stf_h5 *h, const char *name, double t, const double pos[3],
+                       const double quat[4], const double vel[3], const double angvel[3],
+                       const double force[3]);
+
+/* Writes group /metrics with string attribute "json" (replaced if called again). */
+int stf_h5_write_metrics_json(stf_h5 *h, const char *json);
+
+/* Why the last failing call on h failed ("" if none). */
+const char *stf_h5_last_error(const stf_h5 *h);
+
+/* Writes the XDMF sidecar (path with its extension replaced by .xmf), closes the file and
+ * frees h. Returns 0, or -1 with err (h is freed either way). */
+int stf_h5_close(stf_h5 *h, char *err, size_t errlen);
+
+/* Closes the file without a sidecar and frees h (error paths). NULL is a no-op. */
+void stf_h5_abort(stf_h5 *h);
+
+/* ---- reader ---- */
+
+typedef struct stf_h5r stf_h5r;
+
+/* Opens an output file read-only (also one left by a killed run: incomplete frame groups
+ * are skipped). Returns 0, or -1 with "PATH: not an stf output file (why)" or
+ * "PATH: strerror" in err. */
+int stf_h5r_open(const char *path, stf_h5r **out, char *err, size_t errlen);
+void stf_h5r_close(stf_h5r *r);
+
+int stf_h5r_frames(const stf_h5r *r);                 /* complete frames, sorted by N */
+double stf_h5r_frame_time(const stf_h5r *r, int frame); /* NAN if out of range */
+int stf_h5r_frame_count(const stf_h5r *r, int frame);   /* particles; -1 if out of range */
+
+/* Reads frame into 3*n doubles each (interleaved); either pointer may be NULL. 0 / -1. */
+int stf_h5r_read_frame(const stf_h5r *r, int frame, double *xyz, double *v);
+/* Reads khist into n floats; -1 if the frame has none. */
+int stf_h5r_read_khist(const stf_h5r *r, int frame, float *k);
+
+/* Root attributes: -1 / NULL if absent. Numeric attributes of any type convert to double.
+ * The string is malloc'ed; the caller frees it. */
+int stf_h5r_attr_double(const stf_h5r *r, const char *name, double *value);
+char *stf_h5r_attr_string(const stf_h5r *r, const char *name);
+
+/* Bodies under /bodies, in name order. */
+int stf_h5r_body_count(const stf_h5r *r);
+const char *stf_h5r_body_name(const stf_h5r *r, int i); /* NULL if out of range */
+/* Reads a body's series into malloc'ed arrays (caller frees; any pointer may be NULL):
+ * time[N], pos[3N], quat[4N], vel[3N], angvel[3N], force[3N]. Returns N (>= 0; rows of a
+ * series cut short by a kill are dropped) or -1 (no such body, read error). */
+int stf_h5r_body_series(const stf_h5r *r, const char *name, double **time, double **pos,
+                        double **quat, double **vel, double **angvel, double **force);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,165 @@
+/* history.c - ring of past velocities and the weights of Eq. 3. */
+#include "history.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "stf.h"
+
+/* Eq. 3 (Soon et al.'s second-order scheme; the product-trapezoidal rule for the Riemann-
+ * Liouville integral of order 1-q of v, so exact for piecewise-linear v). */
+double stf_history_weight(double q, long p, long n)
+{
+    double e = 2.0 - q;
+    if (p == n) return 1.0;
+    if (p == 0) return pow((double)(n - 1), e) - pow((double)n, 1.0 - q) * ((double)n + q - 2.0);
+    double k = (double)(n - p);
+    return pow(k - 1.0, e) - 2.0 * pow(k, e) + pow(k + 1.0, e);
+}
+
+double history_scale(double q, double dt) { return pow(dt, 1.0 - q) / tgamma(3.0 - q); }
+
+static void fill_weights(stf_history *h, int from)
+{
+    /* Interior weights depend on the lag k = n - p only: a window of d steps is Eq. 3 with
+     * the start index moved from 0 to n - d (paper section 3.2). */
+    h->w[0] = 1.0;
+    for (int k = from > 1 ? from : 1; k < h->cap; k++)
+        h->w[k] = stf_history_weight(h->q, 1, (long)k + 1);
+}
+
+int history_init(stf_history *h, double q, int window, int n)
+{
+    memset(h, 0, sizeof *h);
+    h->q = q;
+    h->window = window;
+    h->cap = window > 0 ? window + 1 : 64;
+    h->w = malloc((size_t)h->cap * sizeof *h->w);
+    if (!h->w) return -1;
+    fill_weights(h, 1);
+    h->head = -1;
+    return history_resize(h, n);
+}
+
+void history_free(stf_history *h)
+{
+    free(h->ring);
+    free(h->w);
+    free(h->D);
+    memset(h, 0, sizeof *h);
+}
+
+int history_resize(stf_history *h, int n)
+{
+    if (n <= h->n_alloc) return 0;
+    int cap = n + n / 4 + 16;
+    size_t row = (size_t)h->cap * 3;
+    float *ring = realloc(h->ring, (size_t)cap * row * sizeof *ring);
+    if (!ring) return -1;
+    memset(ring + (size_t)h->n_alloc * row, 0, (size_t)(cap - h->n_alloc) * row * sizeof *ring);
+    h->ring = ring;
+    double *D = realloc(h->D, (size_t)cap * 3 * sizeof *D);
+    if (!D) return -1;
+    memset(D + (size_t)h->n_alloc * 3, 0, (size_t)(cap - h->n_alloc) * 3 * sizeof *D);
+    h->D = D;
+    h->n_alloc = cap;
+    return 0;
+}
+
+/* Full history: doubles the slots, unrolling each ring so the oldest sample is slot 0. */
+static int grow_slots(stf_history *h)
+{
+    int old = h->cap, cap = 2 * old;
+    float *ring = malloc((size_t)h->n_alloc * (size_t)cap * 3 * sizeof *ring);
+    double *w = realloc(h->w, (size_t)cap * sizeof *w);
+    if (!ring || !w) {
+        free(ring);
+        if (w) h->w = w;
+        return -1;
+    }
+    h->w = w;
+    for (int i = 0; i < h->n_alloc; i++) {
+        const float *src = h->ring + (size_t)i * (size_t)old * 3;
+        float *dst = ring + (size_t)i * (size_t)cap * 3;
+        for (int s = 0; s < old; s++) /* oldest first */
+            memcpy(dst + 3 * s, src + 3 * ((h->head + 1 + s) % old), 3 * sizeof *src);
+        memset(dst + 3 * old, 0, (size_t)(cap - old) * 3 * sizeof *dst);
+    }
+    free(h->ring);
+    h->ring = ring;
+    h->head = old - 1;
+    h->cap = cap;
+    fill_weights(h, old);
+    return 0;
+}
+
+int history_push(stf_history *h, const double *v, int n)
+{
+    if (h->window == 0 && h->pushed >= h->cap && grow_slots(h) != 0) return -1;
+    h->head = (h->head + 1) % h->cap;
+    h->pushed++;
+    size_t row = (size_t)h->cap * 3;
+    int head = h->head;
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++) {
+        float *s = h->ring + (size_t)i * row + 3 * (size_t)head;
+        s[0] = (float)v[3 * i];
+        s[1] = (float)v[3 * i + 1];
+        s[2] = (float)v[3 * i + 2];
+    }
+    return 0;
+}
+
+void history_derivative(stf_history *h, int n)
+{
+    /* m = the oldest lag present. While fewer than cap samples exist, the oldest one is p = 0
+     * of Eq. 3 and takes the end-point weight a_{0,n}. */
+    long last = h->pushed - 1;
+    int m = last < h->cap ? (int)last : h->cap - 1;
+    double w_end = last < h->cap ? stf_history_weight(h->q, 0, last) : h->w[m];
+    if (last == 0) w_end = 1.0;
+    size_t row = (size_t)h->cap * 3;
+    int head = h->head, cap = h->cap;
+    const double *w = h->w;
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++) {
+        const float *r = h->ring + (size_t)i * row;
+        double sx = 0, sy = 0, sz = 0;
+        for (int k = 0; k < m; k++) {
+            int s = head - k;
+            if (s < 0) s += cap;
+            sx += w[k] * r[3 * s];
+            sy += w[k] * r[3 * s + 1];
+            sz += w[k] * r[3 * s + 2];
+        }
+        int s = head - m;
+        if (s < 0) s += cap;
+        sx += w_end * r[3 * s];
+        sy += w_end * r[3 * s + 1];
+        sz += w_end * r[3 * s + 2];
+        h->D[3 * i] = sx;
+        h->D[3 * i + 1] = sy;
+        h->D[3 * i + 2] = sz;
+    }
+}
+
+int history_permute(stf_history *h, const int *perm, int n)
+{
+    size_t row = (size_t)h->cap * 3;
+    float *ring = malloc((size_t)h->n_alloc * row * sizeof *ring);
+    if (!ring) return -1;
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++)
+        memcpy(ring + (size_t)i * row, h->ring + (size_t)perm[i] * row, row * sizeof *ring);
+    memset(ring + (size_t)n * row, 0, (size_t)(h->n_alloc - n) * row * sizeof *ring);
+    free(h->ring);
+    h->ring = ring;
+    return 0;
+}
+
+size_t history_bytes(const stf_history *h)
+{
+    return (size_t)h->n_alloc * ((size_t)h->cap * 3 * sizeof(float) + 3 * sizeof(double)) +
+           (size_t)h->cap * sizeof(double);
+}

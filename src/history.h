@@ -1,0 +1,38 @@
+/* history.h - the fractional derivative of particle positions (paper Eq. 3).
+ *
+ * D^q x_n = dt^(1-q)/Gamma(3-q) * sum_p a_{p,n} v_p. Each particle keeps its past velocities in
+ * a ring (float32, 12 bytes a vector as in the paper's Table 1); the weighted sum is taken once
+ * per particle per step, so a spring needs only |D_i - D_j| (DESIGN.md, "History springs"). */
+#ifndef STF_HISTORY_H
+#define STF_HISTORY_H
+
+#include <stddef.h>
+
+typedef struct stf_history {
+    double q;     /* fractional order, (0,1) */
+    int window;   /* d: lags kept beyond the newest sample; 0 for full history */
+    int cap;      /* ring slots per particle */
+    int n_alloc;  /* particles the ring holds */
+    float *ring;  /* n_alloc * cap * 3 velocities */
+    long pushed;  /* samples pushed since the start */
+    int head;     /* slot of the newest sample */
+    double *w;    /* cap interior weights by lag: w[0] = 1, w[k] = a_{n-k,n} for 0 < k < n */
+    double *D;    /* 3 n: sum_p a_{p,n} v_p (m/s), without the dt^(1-q)/Gamma(3-q) factor */
+} stf_history;
+
+/* window = d steps (>= 1), or 0 for full history. Returns 0, -1 when out of memory. */
+int history_init(stf_history *h, double q, int window, int n);
+void history_free(stf_history *h);
+/* Grows the particle count to n (new particles have a zero past). */
+int history_resize(stf_history *h, int n);
+/* Stores v (3n) as the newest sample. */
+int history_push(stf_history *h, const double *v, int n);
+/* Computes D for every particle from the stored samples. */
+void history_derivative(stf_history *h, int n);
+/* dt^(1-q) / Gamma(3-q): the factor that turns D into D^q x (m/s^q). */
+double history_scale(double q, double dt);
+/* Reorders particles: new index i takes old index perm[i]. */
+int history_permute(stf_history *h, const int *perm, int n);
+size_t history_bytes(const stf_history *h);
+
+#endif

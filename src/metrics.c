@@ -1,0 +1,330 @@
+/* metrics.c - metrics of a run, computed from its output file (definitions in metrics.h). */
+#include "metrics.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "h5io.h"
+
+typedef struct run_geometry {
+    double spacing, min_rise;
+    int has_container;
+    double lo[3], hi[3]; /* container inner box */
+} run_geometry;
+
+static double attr_or(const stf_h5r *r, const char *name, double dflt)
+{
+    double v;
+    return stf_h5r_attr_double(r, name, &v) == 0 ? v : dflt;
+}
+
+static void body_metrics(const stf_h5r *r, const char *name, double surface,
+                         const run_geometry *g, stf_body_metrics *b)
+{
+    memset(b, 0, sizeof *b);
+    snprintf(b->name, sizeof b->name, "%s", name);
+    b->first_contact_time = b->sink_time = b->float_duration = NAN;
+    char key[128];
+    snprintf(key, sizeof key, "body.%s.half_height", name);
+    double hh = attr_or(r, key, 0.0);
+    double *t = NULL, *p = NULL;
+    int n = stf_h5r_body_series(r, name, &t, &p, NULL, NULL, NULL, NULL);
+    if (n <= 0) goto done;
+    int contact = -1, descending = 1;
+    double zmin = 0, zmax = 0;
+    for (int i = 0; i < n; i++) {
+        double z = p[3 * i + 2];
+        if (contact < 0) {
+            if (z - hh > surface + g->spacing) continue;
+            contact = i;
+            b->first_contact_time = t[i];
+            zmin = zmax = z;
+        }
+        if (i > contact && z > surface) {
+            double dx = p[3 * i] - p[3 * i - 3], dy = p[3 * i + 1] - p[3 * i - 2];
+            b->roll_distance += sqrt(dx * dx + dy * dy);
+        }
+        if (isnan(b->sink_time) && z + hh < surface) b->sink_time = t[i];
+        if (descending) {
+            if (z < zmin) zmin = z;
+            if (z >= zmin + g->min_rise) { /* a bounce: risen clearly above the minimum */
+                b->bounces++;
+                descending = 0;
+                zmax = z;
+            }
+        } else {
+            if (z > zmax) zmax = z;
+            if (zmax - zmin > b->max_rebound_height) b->max_rebound_height = zmax - zmin;
+            if (z <= zmax - g->min_rise) {
+                descending = 1;
+                zmin = z;
+            }
+        }
+    }
+    if (!isnan(b->sink_time) && !isnan(b->first_contact_time))
+        b->float_duration = b->sink_time - b->first_contact_time;
+    for (int a = 0; a < 3; a++) b->final_position[a] = p[3 * (n - 1) + a];
+done:
+    free(t);
+    free(p);
+}
+
+/* Column heights of a frame on a 2-spacing grid; returns the number of columns filled. */
+static int column_heights(const double *x, int n, double cell, double *out, int maxcols)
+{
+    if (n == 0) return 0;
+    double x0 = x[0], y0 = x[1], x1 = x[0], y1 = x[1];
+    for (int i = 1; i < n; i++) {
+        x0 = fmin(x0, x[3 * i]), x1 = fmax(x1, x[3 * i]);
+        y0 = fmin(y0, x[3 * i + 1]), y1 = fmax(y1, x[3 * i + 1]);
+    }
+    int nx = (int)((x1 - x0) / cell) + 1, ny = (int)((y1 - y0) / cell) + 1;
+    if ((long)nx * ny > maxcols) return 0;
+    for (int c = 0; c < nx * ny; c++) out[c] = -INFINITY;
+    for (int i = 0; i < n; i++) {
+        int cx = (int)((x[3 * i] - x0) / cell), cy = (int)((x[3 * i + 1] - y0) / cell);
+        double *h = &out[cy * nx + cx];
+        if (x[3 * i + 2] > *h) *h = x[3 * i + 2];
+    }
+    int m = 0;
+    for (int c = 0; c < nx * ny; c++)
+        if (out[c] > -INFINITY) out[m++] = out[c];
+    return m;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* Tallest column above the median column; the roughness (standard deviation) in *rough. */
+static double finger_of(const double *x, int n, double spacing, double *rough)
+{
+    enum { MAXCOLS = 1 << 20 };
+    double *h = malloc(MAXCOLS * sizeof *h);
+    if (!h) return 0;
+    int m = column_heights(x, n, 2 * spacing, h, MAXCOLS);
+    double finger = 0, mean = 0, var = 0;
+    if (m > 0) {
+        qsort(h, (size_t)m, sizeof *h, cmp_double);
+        double median = m % 2 ? h[m / 2] : 0.5 * (h[m / 2 - 1] + h[m / 2]);
+        finger = h[m - 1] - median;
+        for (int c = 0; c < m; c++) mean += h[c] / m;
+        for (int c = 0; c < m; c++) var += (h[c] - mean) * (h[c] - mean) / m;
+    }
+    *rough = sqrt(var);
+    free(h);
+    return finger;
+}
+
+static int fluid_metrics(const stf_h5r *r, const run_geometry *g, stf_metrics *m)
+{
+    int nf = stf_h5r_frames(r);
+    double com_lowest = INFINITY;
+    int last10 = nf - (nf + 9) / 10, counted = 0;
+    for (int f = 0; f < nf; f++) {
+        int n = stf_h5r_frame_count(r, f);
+        double *x = malloc((size_t)(n > 0 ? n : 1) * 3 * sizeof *x);
+        double *v = malloc((size_t)(n > 0 ? n : 1) * 3 * sizeof *v);
+        if (!x || !v || stf_h5r_read_frame(r, f, x, v) != 0) {
+            free(x);
+            free(v);
+            return -1;
+        }
+        double com = 0;
+        for (int i = 0; i < n; i++) {
+            double s = sqrt(v[3 * i] * v[3 * i] + v[3 * i + 1] * v[3 * i + 1] + v[3 * i + 2] * v[3 * i + 2]);
+            if (!isfinite(s) || !isfinite(x[3 * i]) || !isfinite(x[3 * i + 1]) || !isfinite(x[3 * i + 2]))
+                m->nan = 1;
+            else if (s > m->max_speed) m->max_speed = s;
+            com += x[3 * i + 2] / n;
+        }
+        if (n > 0) {
+            if (com < com_lowest) com_lowest = com;
+            if (com - com_lowest > m->com_rebound_height) m->com_rebound_height = com - com_lowest;
+        }
+        if (f >= last10) {
+            double rough = 0;
+            m->finger_height += finger_of(x, n, g->spacing, &rough);
+            counted++;
+            if (f == nf - 1) m->surface_roughness = rough;
+        }
+        if (f == nf - 1) {
+            m->particles = n;
+            for (int i = 0; g->has_container && i < n; i++) {
+                const double *p = x + 3 * i;
+                int in = 1;
+                for (int a = 0; a < 3; a++) in &= p[a] >= g->lo[a] - g->spacing && p[a] <= g->hi[a] + g->spacing;
+                m->escaped += !in;
+            }
+        }
+        free(x);
+        free(v);
+    }
+    if (counted) m->finger_height /= counted;
+    return 0;
+}
+
+static double surface_of_first_frame(const stf_h5r *r, double spacing)
+{
+    int n = stf_h5r_frames(r) > 0 ? stf_h5r_frame_count(r, 0) : 0;
+    if (n <= 0) return NAN;
+    double *x = malloc((size_t)n * 3 * sizeof *x);
+    double top = -INFINITY;
+    if (x && stf_h5r_read_frame(r, 0, x, NULL) == 0)
+        for (int i = 0; i < n; i++) top = fmax(top, x[3 * i + 2]);
+    free(x);
+    return top + 0.5 * spacing;
+}
+
+int stf_metrics_compute(const char *path, stf_metrics *m, char *err, size_t errlen)
+{
+    memset(m, 0, sizeof *m);
+    stf_h5r *r;
+    if (stf_h5r_open(path, &r, err, errlen) != 0) return 2;
+    run_geometry g = {0};
+    if (stf_h5r_attr_double(r, "spacing", &g.spacing) != 0 || !(g.spacing > 0)) {
+        snprintf(err, errlen, "%s: not an stf output file (no 'spacing' attribute)", path);
+        stf_h5r_close(r);
+        return 2;
+    }
+    g.min_rise = attr_or(r, "bounce_min_rise", 0.0);
+    if (!(g.min_rise > 0)) g.min_rise = 0.25 * g.spacing;
+    const char *names[6] = {"container_x0", "container_y0", "container_z0",
+                            "container_x1", "container_y1", "container_z1"};
+    g.has_container = 1;
+    for (int a = 0; a < 6; a++) {
+        double *dst = a < 3 ? &g.lo[a] : &g.hi[a - 3];
+        if (stf_h5r_attr_double(r, names[a], dst) != 0) g.has_container = 0;
+    }
+    int nf = stf_h5r_frames(r);
+    m->time_end = nf > 0 ? stf_h5r_frame_time(r, nf - 1) : 0;
+    m->surface_height = surface_of_first_frame(r, g.spacing);
+    int nb = stf_h5r_body_count(r);
+    for (int k = 0; k < nb && k < STF_METRICS_MAX_BODIES; k++)
+        body_metrics(r, stf_h5r_body_name(r, k), m->surface_height, &g, &m->bodies[m->nbodies++]);
+    char *first = stf_h5r_attr_string(r, "first_body"); /* the scene's first body leads */
+    for (int k = 1; first && k < m->nbodies; k++)
+        if (!strcmp(m->bodies[k].name, first)) {
+            stf_body_metrics t = m->bodies[0];
+            m->bodies[0] = m->bodies[k];
+            m->bodies[k] = t;
+        }
+    free(first);
+    int rc = fluid_metrics(r, &g, m);
+    stf_h5r_close(r);
+    if (rc != 0) {
+        snprintf(err, errlen, "%s: cannot read the particle frames", path);
+        return 2;
+    }
+    return 0;
+}
+
+/* ------------------------------------------------------------------------ output */
+
+typedef struct sbuf {
+    char *s;
+    size_t len, cap;
+} sbuf;
+
+static void put(sbuf *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+#include <stdarg.h>
+static void put(sbuf *b, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    int need = vsnprintf(NULL, 0, fmt, ap);
+    va_end(ap);
+    if (need < 0) return;
+    if (b->len + (size_t)need + 1 > b->cap) {
+        size_t cap = 2 * (b->len + (size_t)need + 1);
+        char *s = realloc(b->s, cap);
+        if (!s) return;
+        b->s = s, b->cap = cap;
+    }
+    va_start(ap, fmt);
+    vsnprintf(b->s + b->len, b->cap - b->len, fmt, ap);
+    va_end(ap);
+    b->len += (size_t)need;
+}
+
+static void put_num(sbuf *b, double v)
+{
+    if (isfinite(v)) put(b, "%.9g", v);
+    else put(b, "null");
+}
+
+char *stf_metrics_json(const stf_metrics *m)
+{
+    sbuf b = {0};
+    put(&b, "{\"time_end\": ");
+    put_num(&b, m->time_end);
+    put(&b, ", \"surface_height\": ");
+    put_num(&b, m->surface_height);
+    put(&b, ",\n \"bodies\": {");
+    for (int k = 0; k < m->nbodies; k++) {
+        const stf_body_metrics *o = &m->bodies[k];
+        put(&b, "%s\n  \"%s\": {\"first_contact_time\": ", k ? "," : "", o->name);
+        put_num(&b, o->first_contact_time);
+        put(&b, ", \"bounces\": %d, \"max_rebound_height\": ", o->bounces);
+        put_num(&b, o->max_rebound_height);
+        put(&b, ", \"roll_distance\": ");
+        put_num(&b, o->roll_distance);
+        put(&b, ", \"sink_time\": ");
+        put_num(&b, o->sink_time);
+        put(&b, ", \"float_duration\": ");
+        put_num(&b, o->float_duration);
+        put(&b, ", \"final_position\": [%.9g, %.9g, %.9g]}", o->final_position[0],
+            o->final_position[1], o->final_position[2]);
+    }
+    put(&b, "},\n \"fluid\": {\"particles\": %ld, \"escaped\": %ld, \"max_speed\": ", m->particles,
+        m->escaped);
+    put_num(&b, m->max_speed);
+    put(&b, ", \"nan\": %s, \"com_rebound_height\": ", m->nan ? "true" : "false");
+    put_num(&b, m->com_rebound_height);
+    put(&b, ", \"finger_height\": ");
+    put_num(&b, m->finger_height);
+    put(&b, ", \"surface_roughness\": ");
+    put_num(&b, m->surface_roughness);
+    put(&b, "}}\n");
+    return b.s;
+}
+
+static int body_field(const stf_body_metrics *b, const char *f, double *v)
+{
+    if (!strcmp(f, "first_contact_time")) *v = b->first_contact_time;
+    else if (!strcmp(f, "bounces")) *v = b->bounces;
+    else if (!strcmp(f, "max_rebound_height")) *v = b->max_rebound_height;
+    else if (!strcmp(f, "roll_distance")) *v = b->roll_distance;
+    else if (!strcmp(f, "sink_time")) *v = b->sink_time;
+    else if (!strcmp(f, "float_duration")) *v = b->float_duration;
+    else return -1;
+    return 0;
+}
+
+int stf_metrics_get(const stf_metrics *m, const char *key, double *v)
+{
+    if (!strcmp(key, "time_end")) return *v = m->time_end, 0;
+    if (!strcmp(key, "surface_height")) return *v = m->surface_height, 0;
+    if (!strncmp(key, "fluid.", 6)) {
+        const char *f = key + 6;
+        if (!strcmp(f, "particles")) *v = (double)m->particles;
+        else if (!strcmp(f, "escaped")) *v = (double)m->escaped;
+        else if (!strcmp(f, "max_speed")) *v = m->max_speed;
+        else if (!strcmp(f, "com_rebound_height")) *v = m->com_rebound_height;
+        else if (!strcmp(f, "finger_height")) *v = m->finger_height;
+        else if (!strcmp(f, "surface_roughness")) *v = m->surface_roughness;
+        else return -1;
+        return 0;
+    }
+    const char *dot = strchr(key, '.');
+    if (!dot) return m->nbodies > 0 ? body_field(&m->bodies[0], key, v) : -1;
+    for (int k = 0; k < m->nbodies; k++)
+        if (strlen(m->bodies[k].name) == (size_t)(dot - key) &&
+            !strncmp(m->bodies[k].name, key, (size_t)(dot - key)))
+            return body_field(&m->bodies[k], dot + 1, v);
+    return -1;
+}

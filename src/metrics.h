@@ -1,0 +1,61 @@
+/* metrics.h - the run metrics of DESIGN.md, computed from an output file.
+ *
+ * Definitions (the one place they live):
+ * - surface_height: top of the fluid at t = 0: the highest particle centre + spacing/2.
+ * - contact: a body's lowest point (centre z - half_height) is within one spacing of
+ *   surface_height. first_contact_time is the first body sample in contact.
+ * - bounce: after first contact, the centre rises by at least bounce_min_rise above a local
+ *   minimum; max_rebound_height is the largest such rise (local minimum to the next peak).
+ * - roll_distance: horizontal path length after first contact while the centre is above
+ *   surface_height.
+ * - sink_time: first time the body's top (centre z + half_height) is below surface_height;
+ *   float_duration = sink_time - first_contact_time.
+ * - fluid.com_rebound_height: the largest rise of the fluid's centre of mass above any
+ *   earlier height of it (a dropped blob's rebound; 0 if it never rises).
+ * - fluid.finger_height: surface columns (cells of 2 spacings in x, y; height = highest
+ *   particle) minus the median column height, tallest column, averaged over the frames of
+ *   the last 10% of the run. surface_roughness: standard deviation of the column heights in
+ *   the last frame.
+ * - fluid.escaped: particles of the last frame outside the container's inner box (grown by
+ *   one spacing; the open top is not a wall up to twice the container height). */
+#ifndef STF_METRICS_H
+#define STF_METRICS_H
+
+#include <stddef.h>
+
+#define STF_METRICS_MAX_BODIES 16
+
+typedef struct stf_body_metrics {
+    char name[64];
+    double first_contact_time; /* s, NAN if never */
+    int bounces;
+    double max_rebound_height; /* m */
+    double roll_distance;      /* m */
+    double sink_time;          /* s, NAN if never */
+    double float_duration;     /* s, NAN if it never touched or never sank */
+    double final_position[3];  /* m */
+} stf_body_metrics;
+
+typedef struct stf_metrics {
+    double time_end;       /* s */
+    double surface_height; /* m */
+    int nbodies;
+    stf_body_metrics bodies[STF_METRICS_MAX_BODIES];
+    long particles;
+    long escaped;
+    double max_speed;          /* m/s */
+    int nan;
+    double com_rebound_height; /* m */
+    double finger_height;      /* m */
+    double surface_roughness;  /* m */
+} stf_metrics;
+
+/* Computes the metrics of the run in path. Returns 0, or 2 with a message (bad file). */
+int stf_metrics_compute(const char *path, stf_metrics *m, char *err, size_t errlen);
+/* The metrics as the JSON object of DESIGN.md (malloc'ed). */
+char *stf_metrics_json(const stf_metrics *m);
+/* Looks up a metric by expectation key ("bounces", "ball.sink_time", "fluid.escaped",
+ * "time_end"). Returns 0 and the value (NAN for null), or -1 if the key names nothing. */
+int stf_metrics_get(const stf_metrics *m, const char *key, double *value);
+
+#endif

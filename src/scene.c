@@ -1,0 +1,1190 @@
+/* scene.c - loading and checking YAML scene files (see scenes/README.md for the schema).
+ *
+ * The file is parsed into a libfyaml document, the --set/--unset overrides are applied to
+ * that document, and the result is walked once to fill an stf_scene. Every error names the
+ * place it came from: FILE:LINE:COL for text of the file, or the override that created the
+ * offending node (such nodes carry the override's index as libfyaml node meta data).
+ */
+#define _POSIX_C_SOURCE 200809L
+#include "stf.h"
+
+#include <errno.h>
+#include <libfyaml.h>
+#include <limits.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+enum { SCENE_BAD = 2 };
+
+typedef struct loader {
+    const char *file; /* name used in messages */
+    char *err;
+    size_t errlen;
+    struct fy_document *fyd;
+    const stf_override *ov;
+    int nov;
+    stf_scene *s;
+} loader;
+
+/* A mapping being read, with what "missing key" errors point at. */
+typedef struct mapv {
+    struct fy_node *node; /* the mapping, NULL when empty or null */
+    struct fy_node *at;   /* its key node (or the item itself); NULL at top level */
+    char path[128];       /* dotted path, "" at top level */
+} mapv;
+
+enum range { R_ANY, R_POS, R_NONNEG, R_UNIT, R_OPEN_UNIT, R_HALF_UNIT };
+
+/* ------------------------------------------------------------------- locations, errors */
+
+/* Position (1-based) of the first token of a node: scalars have one; collections use
+ * their first descendant because libfyaml 0.7 exposes no start mark for them. */
+static int node_mark(struct fy_node *n, int *line, int *col)
+{
+    if (!n) return 0;
+    if (fy_node_is_scalar(n)) {
+        struct fy_token *t = fy_node_get_scalar_token(n);
+        const struct fy_mark *m = t ? fy_token_start_mark(t) : NULL;
+        if (!m) return 0;
+        *line = m->line + 1;
+        *col = m->column + 1;
+        return 1;
+    }
+    void *it = NULL;
+    if (fy_node_is_sequence(n)) return node_mark(fy_node_sequence_iterate(n, &it), line, col);
+    if (fy_node_is_mapping(n)) {
+        struct fy_node_pair *p = fy_node_mapping_iterate(n, &it);
+        return p ? node_mark(fy_node_pair_key(p), line, col) : 0;
+    }
+    return 0;
+}
+
+/* The override (index) that created n or one of its ancestors, or -1. */
+static int node_override(struct fy_node *n)
+{
+    for (; n; n = fy_node_get_document_parent(n)) {
+        intptr_t m = (intptr_t)fy_node_get_meta(n);
+        if (m > 0) return (int)(m - 1);
+    }
+    return -1;
+}
+
+static void mark_override(struct fy_node *n, int i)
+{
+    fy_node_set_meta(n, (void *)(intptr_t)(i + 1));
+}
+
+static int override_fail(loader *L, int i, const char *key, const char *what)
+{
+    const stf_override *o = &L->ov[i];
+    if (o->value)
+        snprintf(L->err, L->errlen, "--set %s=%s: %s: %s", o->key, o->value, key, what);
+    else
+        snprintf(L->err, L->errlen, "--unset %s: %s: %s", o->key, key, what);
+    return SCENE_BAD;
+}
+
+/* Reports an error at node `at` (or `alt` when `at` has no position). Returns SCENE_BAD. */
+static int fail(loader *L, struct fy_node *at, struct fy_node *alt, const char *key,
+                const char *fmt, ...) __attribute__((format(printf, 5, 6)));
+static int fail(loader *L, struct fy_node *at, struct fy_node *alt, const char *key,
+                const char *fmt, ...)
+{
+    char what[512];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(what, sizeof what, fmt, ap);
+    va_end(ap);
+    int o = node_override(at);
+    if (o < 0) o = node_override(alt);
+    if (o >= 0) return override_fail(L, o, key, what);
+    int line = 1, col = 1;
+    if (!node_mark(at, &line, &col)) node_mark(alt, &line, &col);
+    snprintf(L->err, L->errlen, "%s:%d:%d: %s: %s", L->file, line, col, key, what);
+    return SCENE_BAD;
+}
+
+static void join(char *out, size_t n, const char *path, const char *key)
+{
+    if (path[0])
+        snprintf(out, n, "%s.%s", path, key);
+    else
+        snprintf(out, n, "%s", key);
+}
+
+static void join_index(char *out, size_t n, const char *path, int i)
+{
+    snprintf(out, n, "%s.%d", path, i);
+}
+
+static void list_words(char *out, size_t n, const char *const *words)
+{
+    out[0] = '\0';
+    for (int i = 0; words[i]; i++) {
+        size_t len = strlen(out);
+        snprintf(out + len, n - len, "%s%s", i ? ", " : "", words[i]);
+    }
+}
+
+/* ------------------------------------------------------------------------ node access */
+
+static int is_null(struct fy_node *n)
+{
+    return !n || fy_node_is_null(n);
+}
+
+/* Copies a scalar's text into buf; 0 if n is not a scalar or too long. */
+static int scalar_text(struct fy_node *n, char *buf, size_t size)
+{
+    if (!n || !fy_node_is_scalar(n)) return 0;
+    size_t len = 0;
+    const char *t = fy_node_get_scalar(n, &len);
+    if (!t || len >= size) return 0;
+    memcpy(buf, t, len);
+    buf[len] = '\0';
+    return 1;
+}
+
+/* Opens a mapping and rejects keys outside `allowed`. A null value is an empty mapping. */
+static int open_map(loader *L, struct fy_node *n, struct fy_node *at, const char *path,
+                    const char *const *allowed, mapv *m)
+{
+    m->node = is_null(n) ? NULL : n;
+    m->at = at;
+    snprintf(m->path, sizeof m->path, "%s", path);
+    if (!m->node) return 0;
+    if (!fy_node_is_mapping(n))
+        return fail(L, n, at, path[0] ? path : "scene", "expected a mapping");
+    void *it = NULL;
+    struct fy_node_pair *p;
+    while ((p = fy_node_mapping_iterate(n, &it))) {
+        struct fy_node *k = fy_node_pair_key(p);
+        char name[128], full[256], list[512];
+        if (!scalar_text(k, name, sizeof name)) {
+            return fail(L, k, at, path[0] ? path : "scene", "expected a plain key");
+        }
+        int ok = 0;
+        for (int i = 0; allowed[i] && !ok; i++)
+            ok = strcmp(allowed[i], name) == 0;
+        if (!ok) {
+            join(full, sizeof full, path, name);
+            list_words(list, sizeof list, allowed);
+            return fail(L, k, NULL, full, "unknown key (allowed: %s)", list);
+        }
+    }
+    return 0;
+}
+
+/* The value of key in m; *keyn the key node (NULL when absent). */
+static struct fy_node *lookup(const mapv *m, const char *key, struct fy_node **keyn)
+{
+    *keyn = NULL;
+    if (!m->node) return NULL;
+    struct fy_node_pair *p = fy_node_mapping_lookup_pair_by_string(m->node, key, FY_NT);
+    if (!p) return NULL;
+    *keyn = fy_node_pair_key(p);
+    return fy_node_pair_value(p);
+}
+
+static int has(const mapv *m, const char *key)
+{
+    struct fy_node *k;
+    lookup(m, key, &k);
+    return k != NULL;
+}
+
+/* A missing required key: points at the parent's key, or at the --unset that removed it. */
+static int missing(loader *L, const mapv *m, const char *key, const char *why)
+{
+    char full[256];
+    join(full, sizeof full, m->path, key);
+    for (int i = L->nov - 1; i >= 0; i--) {
+        if (!L->ov[i].value && strcmp(L->ov[i].key, full) == 0)
+            return override_fail(L, i, full, "required key is missing");
+    }
+    return fail(L, m->at, NULL, full, "required key is missing%s", why ? why : "");
+}
+
+static int range_ok(double v, int range, const char **msg)
+{
+    static const char *const msgs[] = {"",
+                                       "must be > 0",
+                                       "must be >= 0",
+                                       "must be in [0,1]",
+                                       "must be in (0,1)",
+                                       "must be in [0,1)"};
+    int ok = 1;
+    switch (range) {
+    case R_POS:
+        ok = v > 0;
+        break;
+    case R_NONNEG:
+        ok = v >= 0;
+        break;
+    case R_UNIT:
+        ok = v >= 0 && v <= 1;
+        break;
+    case R_OPEN_UNIT:
+        ok = v > 0 && v < 1;
+        break;
+    case R_HALF_UNIT:
+        ok = v >= 0 && v < 1;
+        break;
+    default:
+        break;
+    }
+    *msg = msgs[range];
+    return ok;
+}
+
+/* Parses a plain scalar as a number: 1 ok, 0 not a number, -1 not finite. */
+static int scalar_number(struct fy_node *n, double *v)
+{
+    char buf[64], *end;
+    if (is_null(n) || !fy_node_is_scalar(n) || fy_node_get_style(n) != FYNS_PLAIN) return 0;
+    if (!scalar_text(n, buf, sizeof buf) || !buf[0]) return 0;
+    const char *t = buf + (buf[0] == '+' || buf[0] == '-');
+    if (t[0] == '.' && (t[1] == 'n' || t[1] == 'N' || t[1] == 'i' || t[1] == 'I')) return -1;
+    errno = 0;
+    *v = strtod(buf, &end);
+    if (*end) return 0;
+    return isfinite(*v) ? 1 : -1;
+}
+
+/* A number element at `path`: checks type, finiteness and range. */
+static int number_at(loader *L, struct fy_node *n, struct fy_node *keyn, const char *path,
+                     int range, double *out)
+{
+    const char *msg;
+    int r = scalar_number(n, out);
+    if (r == 0) return fail(L, n, keyn, path, "expected a number");
+    if (r < 0) return fail(L, n, keyn, path, "must be a finite number (not .nan or .inf)");
+    if (!range_ok(*out, range, &msg)) return fail(L, n, keyn, path, "%s", msg);
+    return 0;
+}
+
+/* Optional number: 1 present, 0 absent, -1 error (message written). */
+static int get_num(loader *L, const mapv *m, const char *key, int range, double *out)
+{
+    struct fy_node *k, *v = lookup(m, key, &k);
+    char full[256];
+    if (!k) return 0;
+    join(full, sizeof full, m->path, key);
+    return number_at(L, v, k, full, range, out) ? -1 : 1;
+}
+
+static int get_vec(loader *L, const mapv *m, const char *key, int range, int count, double *out)
+{
+    struct fy_node *k, *v = lookup(m, key, &k);
+    char full[256], elem[272];
+    if (!k) return 0;
+    join(full, sizeof full, m->path, key);
+    if (is_null(v) || !fy_node_is_sequence(v) || fy_node_sequence_item_count(v) != count) {
+        fail(L, v, k, full, "expected a list of %d numbers", count);
+        return -1;
+    }
+    for (int i = 0; i < count; i++) {
+        join_index(elem, sizeof elem, full, i);
+        if (number_at(L, fy_node_sequence_get_by_index(v, i), k, elem, range, &out[i])) return -1;
+    }
+    return 1;
+}
+
+static int get_int(loader *L, const mapv *m, const char *key, long lo, long hi, long *out)
+{
+    struct fy_node *k, *v = lookup(m, key, &k);
+    char full[256], buf[64], *end;
+    if (!k) return 0;
+    join(full, sizeof full, m->path, key);
+    int ok = !is_null(v) && fy_node_get_style(v) == FYNS_PLAIN && scalar_text(v, buf, sizeof buf);
+    if (ok) {
+        errno = 0;
+        *out = strtol(buf, &end, 10);
+        ok = buf[0] && !*end && errno == 0;
+    }
+    if (!ok) return fail(L, v, k, full, "expected an integer"), -1;
+    if (*out < lo || *out > hi) return fail(L, v, k, full, "must be >= %ld and <= %ld", lo, hi), -1;
+    return 1;
+}
+
+static int get_bool(loader *L, const mapv *m, const char *key, int *out)
+{
+    static const char *const yes[] = {"true", "True", "TRUE"}, *const no[] = {"false", "False",
+                                                                              "FALSE"};
+    struct fy_node *k, *v = lookup(m, key, &k);
+    char full[256], buf[16];
+    if (!k) return 0;
+    join(full, sizeof full, m->path, key);
+    if (!is_null(v) && fy_node_get_style(v) == FYNS_PLAIN && scalar_text(v, buf, sizeof buf)) {
+        for (int i = 0; i < 3; i++) {
+            if (!strcmp(buf, yes[i])) return *out = 1, 1;
+            if (!strcmp(buf, no[i])) return *out = 0, 1;
+        }
+    }
+    return fail(L, v, k, full, "expected true or false"), -1;
+}
+
+/* One of `names`: *out is the index. */
+static int get_choice(loader *L, const mapv *m, const char *key, const char *const *names, int *out)
+{
+    struct fy_node *k, *v = lookup(m, key, &k);
+    char full[256], buf[64], list[256];
+    if (!k) return 0;
+    join(full, sizeof full, m->path, key);
+    if (scalar_text(v, buf, sizeof buf)) {
+        for (int i = 0; names[i]; i++) {
+            if (!strcmp(buf, names[i])) return *out = i, 1;
+        }
+    }
+    list_words(list, sizeof list, names);
+    return fail(L, v, k, full, "expected one of: %s", list), -1;
+}
+
+static int get_str(loader *L, const mapv *m, const char *key, char *out, size_t size)
+{
+    struct fy_node *k, *v = lookup(m, key, &k);
+    char full[256];
+    if (!k) return 0;
+    join(full, sizeof full, m->path, key);
+    if (is_null(v) || !fy_node_is_scalar(v)) return fail(L, v, k, full, "expected a string"), -1;
+    if (!scalar_text(v, out, size))
+        return fail(L, v, k, full, "must be at most %zu characters", size - 1), -1;
+    return 1;
+}
+
+/* Required variants: a missing key is an error. */
+static int need_num(loader *L, const mapv *m, const char *key, int range, double *out)
+{
+    int r = get_num(L, m, key, range, out);
+    if (r == 0) missing(L, m, key, NULL);
+    return r == 1 ? 0 : SCENE_BAD;
+}
+
+static int need_vec(loader *L, const mapv *m, const char *key, int range, int count, double *out)
+{
+    int r = get_vec(L, m, key, range, count, out);
+    if (r == 0) missing(L, m, key, NULL);
+    return r == 1 ? 0 : SCENE_BAD;
+}
+
+/* Fails at the value of key `key` of m (which must be present), or at the key. */
+static int fail_value(loader *L, const mapv *m, const char *key, const char *what)
+{
+    struct fy_node *k, *v = lookup(m, key, &k);
+    char full[256];
+    join(full, sizeof full, m->path, key);
+    return fail(L, v, k, full, "%s", what);
+}
+
+/* Fails at key `key` of m (which must be present): the key itself is wrong here. */
+static int fail_key(loader *L, const mapv *m, const char *key, const char *what)
+{
+    struct fy_node *k, *v = lookup(m, key, &k);
+    char full[256];
+    join(full, sizeof full, m->path, key);
+    return fail(L, k, v, full, "%s", what);
+}
+
+static int normalise(double *v, int n)
+{
+    double s = 0;
+    for (int i = 0; i < n; i++)
+        s += v[i] * v[i];
+    if (!(s > 0)) return -1;
+    s = sqrt(s);
+    for (int i = 0; i < n; i++)
+        v[i] /= s;
+    return 0;
+}
+
+/* ----------------------------------------------------------------------- the sections */
+
+static int parse_blocks(loader *L, const mapv *fluid)
+{
+    static const char *const keys[] = {"min", "max", "velocity", NULL};
+    struct fy_node *k, *v = lookup(fluid, "blocks", &k);
+    char path[64];
+    if (!k) return missing(L, fluid, "blocks", NULL);
+    if (is_null(v) || !fy_node_is_sequence(v) || fy_node_sequence_item_count(v) < 1)
+        return fail(L, v, k, "fluid.blocks", "expected a list of at least 1 block");
+    int n = fy_node_sequence_item_count(v);
+    L->s->blocks = calloc((size_t)n, sizeof *L->s->blocks);
+    if (!L->s->blocks) return fail(L, NULL, NULL, "fluid.blocks", "out of memory");
+    for (int i = 0; i < n; i++) {
+        struct fy_node *item = fy_node_sequence_get_by_index(v, i);
+        stf_block *b = &L->s->blocks[i];
+        mapv bm;
+        snprintf(path, sizeof path, "fluid.blocks.%d", i);
+        if (is_null(item)) return fail(L, item, k, path, "expected a mapping");
+        if (open_map(L, item, item, path, keys, &bm)) return SCENE_BAD;
+        if (need_vec(L, &bm, "min", R_ANY, 3, b->lo) || need_vec(L, &bm, "max", R_ANY, 3, b->hi))
+            return SCENE_BAD;
+        if (get_vec(L, &bm, "velocity", R_ANY, 3, b->velocity) < 0) return SCENE_BAD;
+        for (int c = 0; c < 3; c++) {
+            if (!(b->lo[c] < b->hi[c]))
+                return fail_value(L, &bm, "max", "must be > min in every component");
+        }
+        b->line = b->col = 1;
+        node_mark(item, &b->line, &b->col);
+        L->s->nblocks = i + 1;
+    }
+    return 0;
+}
+
+static int parse_fluid(loader *L, const mapv *top)
+{
+    static const char *const keys[] = {"model", "spacing", "density", "h", "blocks", NULL};
+    static const char *const models[] = {"clavet_stf", NULL};
+    stf_fluid_def *f = &L->s->fluid;
+    struct fy_node *k, *v = lookup(top, "fluid", &k);
+    mapv m;
+    int model;
+    if (!k) return missing(L, top, "fluid", NULL);
+    if (open_map(L, v, k, "fluid", keys, &m)) return SCENE_BAD;
+    if (get_choice(L, &m, "model", models, &model) < 0) return SCENE_BAD;
+    if (need_num(L, &m, "spacing", R_POS, &f->spacing)) return SCENE_BAD;
+    if (f->spacing > 1) return fail_value(L, &m, "spacing", "must be > 0 and <= 1");
+    if (get_num(L, &m, "density", R_POS, &f->density) < 0) return SCENE_BAD;
+    if (get_num(L, &m, "h", R_NONNEG, &f->h) < 0) return SCENE_BAD;
+    if (f->h > 0 && (f->h < f->spacing || f->h > 5 * f->spacing))
+        return fail_value(L, &m, "h", "must be 0 (= 2*spacing) or in [spacing, 5*spacing]");
+    return parse_blocks(L, &m);
+}
+
+static int parse_history(loader *L, const mapv *h)
+{
+    static const char *const modes[] = {"window", "full", NULL};
+    stf_fluid_def *f = &L->s->fluid;
+    long d = 1;
+    int mode = 0, rd, rm;
+    if (get_num(L, h, "q", R_OPEN_UNIT, &f->q) < 0) return SCENE_BAD;
+    if ((rd = get_int(L, h, "d", 1, 100000, &d)) < 0) return SCENE_BAD;
+    if ((rm = get_num(L, h, "memory", R_POS, &f->memory)) < 0) return SCENE_BAD;
+    if (rd && rm) return fail_key(L, h, "memory", "give either d or memory, not both");
+    if (rd) {
+        f->d = (int)d;
+        f->memory = 0; /* memory > 0 would override d */
+    }
+    if (get_num(L, h, "k_hist", R_NONNEG, &f->k_hist) < 0) return SCENE_BAD;
+    if (get_choice(L, h, "mode", modes, &mode) < 0) return SCENE_BAD;
+    if (has(h, "mode")) f->history_mode = mode ? STF_HISTORY_FULL : STF_HISTORY_WINDOW;
+    return 0;
+}
+
+/* Reads the params of one effect; e is its index in the effect table. */
+static int parse_effect_params(loader *L, int e, const mapv *p)
+{
+    stf_fluid_def *f = &L->s->fluid;
+    switch (e) {
+    case 0:
+        return get_vec(L, p, "g", R_ANY, 3, f->gravity) < 0 ? SCENE_BAD : 0;
+    case 1:
+        if (get_num(L, p, "sigma", R_NONNEG, &f->sigma) < 0) return SCENE_BAD;
+        return get_num(L, p, "beta", R_NONNEG, &f->beta) < 0 ? SCENE_BAD : 0;
+    case 2:
+        if (get_num(L, p, "k", R_POS, &f->k) < 0) return SCENE_BAD;
+        if (get_num(L, p, "k_near", R_NONNEG, &f->k_near) < 0) return SCENE_BAD;
+        return get_num(L, p, "rest_density", R_NONNEG, &f->rest_density) < 0 ? SCENE_BAD : 0;
+    case 3:
+        if (get_num(L, p, "k_min", R_NONNEG, &f->k_min) < 0) return SCENE_BAD;
+        if (get_num(L, p, "yield_ratio", R_UNIT, &f->yield_ratio) < 0) return SCENE_BAD;
+        return get_num(L, p, "plasticity", R_NONNEG, &f->plasticity) < 0 ? SCENE_BAD : 0;
+    case 4:
+        return parse_history(L, p);
+    default:
+        return get_num(L, p, "stick", R_NONNEG, &f->stick) < 0 ? SCENE_BAD : 0;
+    }
+}
+
+static const char *const gravity_keys[] = {"g", NULL};
+static const char *const viscosity_keys[] = {"sigma", "beta", NULL};
+static const char *const pressure_keys[] = {"k", "k_near", "rest_density", NULL};
+static const char *const springs_keys[] = {"k_min", "yield_ratio", "plasticity", NULL};
+static const char *const history_keys[] = {"q", "d", "memory", "k_hist", "mode", NULL};
+static const char *const stick_keys[] = {"stick", NULL};
+
+static int parse_effects(loader *L, const mapv *top)
+{
+    static const char *const names[] = {"gravity", "viscosity",      "pressure", "springs",
+                                        "history", "boundary_stick", NULL};
+    static const unsigned bits[] = {STF_EFFECT_GRAVITY,  STF_EFFECT_VISCOSITY,
+                                    STF_EFFECT_PRESSURE, STF_EFFECT_SPRINGS,
+                                    STF_EFFECT_HISTORY,  STF_EFFECT_BOUNDARY_STICK};
+    static const char *const *const params[] = {gravity_keys, viscosity_keys, pressure_keys,
+                                                springs_keys, history_keys,   stick_keys};
+    struct fy_node *k, *v = lookup(top, "effects", &k);
+    mapv m, p;
+    char path[64];
+    if (!k) return missing(L, top, "effects", NULL);
+    if (open_map(L, v, k, "effects", names, &m)) return SCENE_BAD;
+    L->s->fluid.effects = 0;
+    for (int e = 0; names[e]; e++) {
+        struct fy_node *ek, *ev = lookup(&m, names[e], &ek);
+        if (!ek) continue;
+        L->s->fluid.effects |= bits[e];
+        snprintf(path, sizeof path, "effects.%s", names[e]);
+        if (open_map(L, ev, ek, path, params[e], &p) || parse_effect_params(L, e, &p))
+            return SCENE_BAD;
+    }
+    if (has(&m, "history") && !has(&m, "springs"))
+        return fail_key(L, &m, "history", "needs effects.springs");
+    return 0;
+}
+
+static const char *const motion_names[] = {"dynamic", "kinematic", "static", NULL};
+
+static void default_vibration(stf_vibration *v)
+{
+    *v = (stf_vibration){.axis = {0, 0, 1}, .frequency = 50, .jitter_period = 0.5, .seed = 1};
+}
+
+/* Reads m.vibration if present; allowed only for kinematic motion. */
+static int parse_vibration(loader *L, const mapv *m, int motion, stf_vibration *vib)
+{
+    static const char *const keys[] = {"axis",          "amplitude", "frequency", "jitter",
+                                       "jitter_period", "seed",      NULL};
+    struct fy_node *k, *v = lookup(m, "vibration", &k);
+    char path[160];
+    mapv vm;
+    long seed;
+    default_vibration(vib);
+    if (!k) return 0;
+    if (motion != STF_MOTION_KINEMATIC)
+        return fail_key(L, m, "vibration", "only allowed with motion: kinematic");
+    join(path, sizeof path, m->path, "vibration");
+    if (open_map(L, v, k, path, keys, &vm)) return SCENE_BAD;
+    int r = get_vec(L, &vm, "axis", R_ANY, 3, vib->axis);
+    if (r < 0) return SCENE_BAD;
+    if (r && normalise(vib->axis, 3)) return fail_value(L, &vm, "axis", "must be non-zero");
+    if (get_num(L, &vm, "amplitude", R_NONNEG, &vib->amplitude) < 0 ||
+        get_num(L, &vm, "frequency", R_POS, &vib->frequency) < 0 ||
+        get_num(L, &vm, "jitter", R_HALF_UNIT, &vib->jitter) < 0 ||
+        get_num(L, &vm, "jitter_period", R_POS, &vib->jitter_period) < 0)
+        return SCENE_BAD;
+    if ((r = get_int(L, &vm, "seed", 0, (long)UINT_MAX < LONG_MAX ? (long)UINT_MAX : LONG_MAX,
+                     &seed)) < 0)
+        return SCENE_BAD;
+    if (r) vib->seed = (unsigned)seed;
+    return 0;
+}
+
+static int parse_container(loader *L, const mapv *top)
+{
+    static const char *const keys[] = {"size",   "wall", "position",  "friction", "stick",
+                                       "motion", "mass", "vibration", NULL};
+    stf_container_def *c = &L->s->container;
+    struct fy_node *k, *v = lookup(top, "container", &k);
+    mapv m;
+    if (!k) return 0;
+    *c = (stf_container_def){
+        .present = 1, .wall = 0.02, .friction = 0.2, .stick = 1, .motion = STF_MOTION_STATIC};
+    if (open_map(L, v, k, "container", keys, &m)) return SCENE_BAD;
+    if (need_vec(L, &m, "size", R_POS, 3, c->size)) return SCENE_BAD;
+    if (get_num(L, &m, "wall", R_POS, &c->wall) < 0 ||
+        get_vec(L, &m, "position", R_ANY, 3, c->position) < 0 ||
+        get_num(L, &m, "friction", R_UNIT, &c->friction) < 0 ||
+        get_bool(L, &m, "stick", &c->stick) < 0 ||
+        get_choice(L, &m, "motion", motion_names, &c->motion) < 0)
+        return SCENE_BAD;
+    int r = get_num(L, &m, "mass", R_POS, &c->mass);
+    if (r < 0) return SCENE_BAD;
+    if (c->motion == STF_MOTION_DYNAMIC && !r) return missing(L, &m, "mass", " (motion: dynamic)");
+    if (c->motion != STF_MOTION_DYNAMIC && r)
+        return fail_key(L, &m, "mass", "only allowed with motion: dynamic");
+    return parse_vibration(L, &m, c->motion, &c->vibration);
+}
+
+/* Every block must start inside the container's inner box. */
+static int check_blocks_inside(loader *L)
+{
+    const stf_container_def *c = &L->s->container;
+    if (!c->present) return 0;
+    double lo[3], hi[3];
+    for (int a = 0; a < 2; a++) {
+        lo[a] = c->position[a] - c->size[a] / 2;
+        hi[a] = c->position[a] + c->size[a] / 2;
+    }
+    lo[2] = c->position[2];
+    hi[2] = c->position[2] + c->size[2];
+    for (int i = 0; i < L->s->nblocks; i++) {
+        const stf_block *b = &L->s->blocks[i];
+        int in = 1;
+        for (int a = 0; a < 3; a++)
+            in = in && b->lo[a] >= lo[a] && b->hi[a] <= hi[a];
+        if (in) continue;
+        struct fy_node *fluid =
+            fy_node_mapping_lookup_by_string(fy_document_root(L->fyd), "fluid", FY_NT);
+        struct fy_node *blocks = fy_node_mapping_lookup_by_string(fluid, "blocks", FY_NT);
+        char path[64];
+        snprintf(path, sizeof path, "fluid.blocks.%d", i);
+        return fail(L, fy_node_sequence_get_by_index(blocks, i), NULL, path,
+                    "lies outside the container");
+    }
+    return 0;
+}
+
+/* ---------------------------------------------------------------------------- bodies */
+
+static const char *const shape_names[] = {"sphere", "box", "capsule", "cylinder", "convex", NULL};
+static const int shape_ids[] = {STF_SHAPE_SPHERE, STF_SHAPE_BOX, STF_SHAPE_CAPSULE,
+                                STF_SHAPE_CYLINDER, STF_SHAPE_CONVEX};
+/* Geometry keys of each shape, in shape_names order. */
+static const char *const radius_keys[] = {"radius", NULL};
+static const char *const box_keys[] = {"size", NULL};
+static const char *const round_keys[] = {"radius", "length", NULL};
+static const char *const convex_keys[] = {"points", NULL};
+static const char *const *const shape_keys[] = {radius_keys, box_keys, round_keys, round_keys,
+                                                convex_keys};
+
+static int valid_name(const char *s)
+{
+    if (!s[0]) return 0;
+    for (; *s; s++) {
+        char ch = *s;
+        int ok = (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') ||
+                 ch == '_';
+        if (!ok) return 0;
+    }
+    return 1;
+}
+
+/* Appends the convex points of m.points to scene->points; *first is the index of the first. */
+static int parse_points(loader *L, const mapv *m, int *first, int *count)
+{
+    struct fy_node *k, *v = lookup(m, "points", &k);
+    char path[160], elem[176];
+    join(path, sizeof path, m->path, "points");
+    if (is_null(v) || !fy_node_is_sequence(v) || fy_node_sequence_item_count(v) < 4)
+        return fail(L, v, k, path, "expected a list of at least 4 points [x, y, z]");
+    int n = fy_node_sequence_item_count(v), have = 0;
+    for (int i = 0; i < L->s->nbodies; i++)
+        have += L->s->bodies[i].shape.npoints;
+    double *p = realloc(L->s->points, sizeof *p * 3 * (size_t)(have + n));
+    if (!p) return fail(L, NULL, NULL, path, "out of memory");
+    L->s->points = p;
+    for (int i = 0; i < n; i++) {
+        struct fy_node *pt = fy_node_sequence_get_by_index(v, i);
+        join_index(elem, sizeof elem, path, i);
+        if (is_null(pt) || !fy_node_is_sequence(pt) || fy_node_sequence_item_count(pt) != 3)
+            return fail(L, pt, k, elem, "expected a list of 3 numbers");
+        for (int c = 0; c < 3; c++) {
+            char sub[192];
+            join_index(sub, sizeof sub, elem, c);
+            if (number_at(L, fy_node_sequence_get_by_index(pt, c), k, sub, R_ANY,
+                          &p[3 * (have + i) + c]))
+                return SCENE_BAD;
+        }
+    }
+    *first = have;
+    *count = n;
+    return 0;
+}
+
+static int parse_shape(loader *L, const mapv *m, int si, stf_body_def *b, int *first)
+{
+    static const char *const geometry[] = {"radius", "size", "length", "points", NULL};
+    const char *const *own = shape_keys[si];
+    char list[64];
+    for (int g = 0; geometry[g]; g++) {
+        int mine = 0;
+        for (int i = 0; own[i]; i++)
+            mine = mine || !strcmp(own[i], geometry[g]);
+        if (mine && !has(m, geometry[g])) return missing(L, m, geometry[g], NULL);
+        if (!mine && has(m, geometry[g])) {
+            char what[160];
+            list_words(list, sizeof list, own);
+            snprintf(what, sizeof what, "not a key of shape %s (allowed: %s)", shape_names[si],
+                     list);
+            return fail_key(L, m, geometry[g], what);
+        }
+    }
+    double size[3];
+    if (get_num(L, m, "radius", R_POS, &b->shape.radius) < 0) return SCENE_BAD;
+    if (get_num(L, m, "length", R_POS, &b->shape.half_length) < 0) return SCENE_BAD;
+    b->shape.half_length /= 2;
+    int r = get_vec(L, m, "size", R_POS, 3, size);
+    if (r < 0) return SCENE_BAD;
+    for (int c = 0; r && c < 3; c++)
+        b->shape.half[c] = size[c] / 2;
+    if (shape_ids[si] == STF_SHAPE_CONVEX) return parse_points(L, m, first, &b->shape.npoints);
+    return 0;
+}
+
+static int parse_mass(loader *L, const mapv *m, stf_body_def *b)
+{
+    int rm = get_num(L, m, "mass", R_POS, &b->mass);
+    if (rm < 0) return SCENE_BAD;
+    int rd = get_num(L, m, "density", R_POS, &b->density);
+    if (rd < 0) return SCENE_BAD;
+    if (rm && rd) return fail_key(L, m, "density", "give either mass or density, not both");
+    if (b->motion == STF_MOTION_DYNAMIC && !rm && !rd)
+        return missing(L, m, "mass", " (a dynamic body needs mass or density)");
+    return 0;
+}
+
+static int parse_body(loader *L, struct fy_node *item, int i, int *first)
+{
+    static const char *const keys[] = {
+        "name",   "shape",    "radius",   "size",      "length",   "points",
+        "mass",   "density",  "position", "rotation",  "velocity", "angular_velocity",
+        "motion", "friction", "stick",    "vibration", NULL};
+    stf_body_def *b = &L->s->bodies[i];
+    char path[64];
+    mapv m;
+    int si;
+    snprintf(path, sizeof path, "bodies.%d", i);
+    if (is_null(item)) return fail(L, item, NULL, path, "expected a mapping");
+    if (open_map(L, item, item, path, keys, &m)) return SCENE_BAD;
+    b->shape = stf_default_collider_def();
+    b->shape.friction = 0.2;
+    b->shape.stick = 0;
+    b->quaternion[0] = 1;
+    b->line = b->col = 1;
+    node_mark(item, &b->line, &b->col);
+    int r = get_str(L, &m, "name", b->name, sizeof b->name);
+    if (r <= 0) return r < 0 ? SCENE_BAD : missing(L, &m, "name", NULL);
+    if (!valid_name(b->name))
+        return fail_value(L, &m, "name", "must be non-empty and use only [A-Za-z0-9_]");
+    for (int j = 0; j < i; j++) {
+        if (strcmp(L->s->bodies[j].name, b->name)) continue;
+        char what[160];
+        snprintf(what, sizeof what, "duplicate body name '%s' (first at line %d)", b->name,
+                 L->s->bodies[j].line);
+        return fail_value(L, &m, "name", what);
+    }
+    if ((r = get_choice(L, &m, "shape", shape_names, &si)) <= 0)
+        return r < 0 ? SCENE_BAD : missing(L, &m, "shape", NULL);
+    b->shape.shape = shape_ids[si];
+    if (parse_shape(L, &m, si, b, first)) return SCENE_BAD;
+    if (get_choice(L, &m, "motion", motion_names, &b->motion) < 0) return SCENE_BAD;
+    if (parse_mass(L, &m, b)) return SCENE_BAD;
+    if (get_vec(L, &m, "position", R_ANY, 3, b->position) < 0 ||
+        (r = get_vec(L, &m, "rotation", R_ANY, 4, b->quaternion)) < 0 ||
+        get_vec(L, &m, "velocity", R_ANY, 3, b->velocity) < 0 ||
+        get_vec(L, &m, "angular_velocity", R_ANY, 3, b->angular_velocity) < 0 ||
+        get_num(L, &m, "friction", R_UNIT, &b->shape.friction) < 0 ||
+        get_bool(L, &m, "stick", &b->shape.stick) < 0)
+        return SCENE_BAD;
+    if (r && normalise(b->quaternion, 4)) return fail_value(L, &m, "rotation", "must be non-zero");
+    return parse_vibration(L, &m, b->motion, &b->vibration);
+}
+
+static int parse_bodies(loader *L, const mapv *top)
+{
+    struct fy_node *k, *v = lookup(top, "bodies", &k);
+    if (!k || is_null(v)) return 0;
+    if (!fy_node_is_sequence(v)) return fail(L, v, k, "bodies", "expected a list of bodies");
+    int n = fy_node_sequence_item_count(v);
+    int *first = calloc((size_t)n + 1, sizeof *first);
+    L->s->bodies = calloc((size_t)n + 1, sizeof *L->s->bodies);
+    if (!first || !L->s->bodies) {
+        free(first);
+        return fail(L, NULL, NULL, "bodies", "out of memory");
+    }
+    int rc = 0;
+    for (int i = 0; i < n && !rc; i++) {
+        rc = parse_body(L, fy_node_sequence_get_by_index(v, i), i, &first[i]);
+        L->s->nbodies = i + 1;
+    }
+    /* Only now: parse_points reallocs the storage, which moves it. */
+    for (int i = 0; i < L->s->nbodies; i++) {
+        stf_collider_def *sh = &L->s->bodies[i].shape;
+        sh->points = sh->npoints ? L->s->points + 3 * first[i] : NULL;
+    }
+    free(first);
+    return rc;
+}
+
+/* ---------------------------------------------------------------------------- expect */
+
+static const char *const top_metrics[] = {"time_end", "surface_height", NULL};
+static const char *const body_metrics[] = {
+    "first_contact_time", "bounces", "max_rebound_height", "roll_distance", "sink_time",
+    "float_duration",     NULL};
+static const char *const fluid_metrics[] = {
+    "particles",     "escaped",           "max_speed", "com_rebound_height",
+    "finger_height", "surface_roughness", NULL};
+
+static int in_list(const char *s, const char *const *list)
+{
+    for (int i = 0; list[i]; i++) {
+        if (!strcmp(s, list[i])) return 1;
+    }
+    return 0;
+}
+
+/* Checks an expect key; returns an error text or NULL. */
+static const char *expect_key_error(const stf_scene *s, const char *key)
+{
+    const char *dot = strchr(key, '.');
+    if (!dot) {
+        if (in_list(key, top_metrics)) return NULL;
+        if (!in_list(key, body_metrics)) return "unknown metric";
+        return s->nbodies ? NULL : "a body metric needs at least one body";
+    }
+    size_t plen = (size_t)(dot - key);
+    if (plen == 5 && !strncmp(key, "fluid", 5))
+        return in_list(dot + 1, fluid_metrics) ? NULL : "unknown fluid metric";
+    for (int i = 0; i < s->nbodies; i++) {
+        if (strlen(s->bodies[i].name) == plen && !strncmp(key, s->bodies[i].name, plen))
+            return in_list(dot + 1, body_metrics) ? NULL : "unknown body metric";
+    }
+    return "the prefix names no body (nor fluid)";
+}
+
+/* "OP NUMBER" or a plain number (==). */
+static int parse_condition(struct fy_node *v, stf_expectation *e)
+{
+    static const char *const ops[] = {"<=", ">=", "==", "<", ">", NULL};
+    char buf[96], *t = buf, *end;
+    if (scalar_number(v, &e->value) == 1) return strcpy(e->op, "=="), 0;
+    if (is_null(v) || !scalar_text(v, buf, sizeof buf)) return -1;
+    while (*t == ' ')
+        t++;
+    int i = 0;
+    while (ops[i] && strncmp(t, ops[i], strlen(ops[i])))
+        i++;
+    if (!ops[i]) return -1;
+    strcpy(e->op, ops[i]);
+    t += strlen(ops[i]);
+    e->value = strtod(t, &end);
+    while (*end == ' ')
+        end++;
+    return end == t || *end || !isfinite(e->value) ? -1 : 0;
+}
+
+static int parse_expect(loader *L, const mapv *top)
+{
+    struct fy_node *k, *v = lookup(top, "expect", &k);
+    char list[512], path[160];
+    if (!k || is_null(v)) return 0;
+    if (!fy_node_is_mapping(v)) return fail(L, v, k, "expect", "expected a mapping");
+    int n = fy_node_mapping_item_count(v);
+    L->s->expect = calloc((size_t)n + 1, sizeof *L->s->expect);
+    if (!L->s->expect) return fail(L, NULL, NULL, "expect", "out of memory");
+    for (int i = 0; i < n; i++) {
+        struct fy_node_pair *p = fy_node_mapping_get_by_index(v, i);
+        struct fy_node *ek = fy_node_pair_key(p), *ev = fy_node_pair_value(p);
+        stf_expectation *e = &L->s->expect[i];
+        if (!scalar_text(ek, e->key, sizeof e->key))
+            return fail(L, ek, k, "expect", "expected a metric name");
+        snprintf(path, sizeof path, "expect.%s", e->key);
+        const char *bad = expect_key_error(L->s, e->key);
+        if (bad) {
+            list_words(list, sizeof list, top_metrics);
+            return fail(L, ek, NULL, path, "%s (allowed: %s, [BODY.]%s, fluid.%s ...)", bad, list,
+                        body_metrics[0], fluid_metrics[0]);
+        }
+        if (parse_condition(ev, e))
+            return fail(L, ev, ek, path,
+                        "expected \"OP NUMBER\" with OP one of <, <=, >, >=, == (or a number)");
+        e->line = e->col = 1;
+        node_mark(ek, &e->line, &e->col);
+        L->s->nexpect = i + 1;
+    }
+    return 0;
+}
+
+/* ------------------------------------------------------------------------- top level */
+
+static void file_stem(const char *path, char *out, size_t n)
+{
+    const char *base = strrchr(path, '/');
+    base = base ? base + 1 : path;
+    const char *dot = strrchr(base, '.');
+    size_t len = dot && dot != base ? (size_t)(dot - base) : strlen(base);
+    if (len >= n) len = n - 1;
+    memcpy(out, base, len);
+    out[len] = '\0';
+}
+
+static int parse_scene(loader *L)
+{
+    static const char *const keys[] = {
+        "name",      "duration", "dt",     "frame_rate", "bounce_min_rise", "fluid", "effects",
+        "container", "bodies",   "expect", NULL};
+    stf_scene *s = L->s;
+    mapv top;
+    if (open_map(L, fy_document_root(L->fyd), NULL, "", keys, &top)) return SCENE_BAD;
+    file_stem(s->path, s->name, sizeof s->name);
+    s->dt = 0.001;
+    s->frame_rate = 60;
+    if (get_str(L, &top, "name", s->name, sizeof s->name) < 0) return SCENE_BAD;
+    if (need_num(L, &top, "duration", R_POS, &s->duration)) return SCENE_BAD;
+    if (get_num(L, &top, "dt", R_POS, &s->dt) < 0) return SCENE_BAD;
+    if (s->dt > 0.1) return fail_value(L, &top, "dt", "must be > 0 and <= 0.1");
+    if (get_num(L, &top, "frame_rate", R_POS, &s->frame_rate) < 0 ||
+        get_num(L, &top, "bounce_min_rise", R_NONNEG, &s->bounce_min_rise) < 0)
+        return SCENE_BAD;
+    s->fluid = stf_default_fluid_def();
+    if (parse_fluid(L, &top) || parse_effects(L, &top) || parse_container(L, &top) ||
+        check_blocks_inside(L) || parse_bodies(L, &top) || parse_expect(L, &top))
+        return SCENE_BAD;
+    return 0;
+}
+
+/* --------------------------------------------------------------------------- overrides */
+
+/* Index component of a path into a sequence: -1 if not a number. */
+static int path_index(const char *comp)
+{
+    char *end;
+    if (!comp[0] || comp[0] == '-' || comp[0] == '+') return -1;
+    long i = strtol(comp, &end, 10);
+    return *end || i > INT_MAX ? -1 : (int)i;
+}
+
+static struct fy_node *new_mapping_at(loader *L, struct fy_node_pair *p, struct fy_node *map,
+                                      const char *comp, int oi)
+{
+    struct fy_node *m = fy_node_create_mapping(L->fyd);
+    if (!m) return NULL;
+    mark_override(m, oi);
+    if (p) {
+        fy_node_pair_set_value(p, m);
+        return m;
+    }
+    struct fy_node *k = fy_node_create_scalar_copy(L->fyd, comp, FY_NT);
+    if (!k) return fy_node_free(m), NULL;
+    mark_override(k, oi);
+    if (fy_node_mapping_append(map, k, m)) {
+        fy_node_free(k);
+        fy_node_free(m);
+        return NULL;
+    }
+    return m;
+}
+
+/* Walks (creating mappings when setting) to the parent of the last path component. */
+static int walk_to_parent(loader *L, int oi, char **comps, int n, struct fy_node **out)
+{
+    const stf_override *o = &L->ov[oi];
+    struct fy_node *cur = fy_document_root(L->fyd);
+    if (is_null(cur)) {
+        if (!o->value) return override_fail(L, oi, o->key, "no such key");
+        cur = fy_node_create_mapping(L->fyd);
+        if (!cur || fy_document_set_root(L->fyd, cur))
+            return override_fail(L, oi, o->key, "out of memory");
+    }
+    for (int i = 0; i < n - 1; i++) {
+        struct fy_node *next = NULL;
+        struct fy_node_pair *p = NULL;
+        if (fy_node_is_mapping(cur)) {
+            p = fy_node_mapping_lookup_pair_by_string(cur, comps[i], FY_NT);
+            next = p ? fy_node_pair_value(p) : NULL;
+            if ((!p || is_null(next)) && o->value) next = new_mapping_at(L, p, cur, comps[i], oi);
+        } else if (fy_node_is_sequence(cur)) {
+            int idx = path_index(comps[i]);
+            if (idx >= 0) next = fy_node_sequence_get_by_index(cur, idx);
+        }
+        if (is_null(next) || fy_node_is_scalar(next))
+            return override_fail(L, oi, o->key, "no such key");
+        cur = next;
+    }
+    *out = cur;
+    return 0;
+}
+
+static struct fy_node *build_value(loader *L, const char *text)
+{
+    return fy_node_build_from_string(L->fyd, text[0] ? text : "~", FY_NT);
+}
+
+static int set_last(loader *L, int oi, struct fy_node *parent, const char *comp)
+{
+    const stf_override *o = &L->ov[oi];
+    struct fy_node *v = build_value(L, o->value);
+    if (!v) return override_fail(L, oi, o->key, "cannot parse the value as YAML");
+    mark_override(v, oi);
+    if (fy_node_is_mapping(parent)) {
+        struct fy_node_pair *p = fy_node_mapping_lookup_pair_by_string(parent, comp, FY_NT);
+        if (p) return fy_node_pair_set_value(p, v) ? override_fail(L, oi, o->key, "cannot set") : 0;
+        struct fy_node *k = fy_node_create_scalar_copy(L->fyd, comp, FY_NT);
+        if (k) mark_override(k, oi);
+        if (k && !fy_node_mapping_append(parent, k, v)) return 0;
+        fy_node_free(k);
+        fy_node_free(v);
+        return override_fail(L, oi, o->key, "cannot set");
+    }
+    int idx = path_index(comp), count = fy_node_sequence_item_count(parent);
+    if (idx < 0 || idx > count) {
+        fy_node_free(v);
+        return override_fail(L, oi, o->key, "no such list item");
+    }
+    if (idx == count)
+        return fy_node_sequence_append(parent, v) ? override_fail(L, oi, o->key, "cannot set") : 0;
+    struct fy_node *old = fy_node_sequence_get_by_index(parent, idx);
+    fy_node_sequence_insert_after(parent, old, v);
+    fy_node_free(fy_node_sequence_remove(parent, old));
+    return 0;
+}
+
+static int unset_last(loader *L, int oi, struct fy_node *parent, const char *comp)
+{
+    const stf_override *o = &L->ov[oi];
+    if (fy_node_is_mapping(parent)) {
+        struct fy_node_pair *p = fy_node_mapping_lookup_pair_by_string(parent, comp, FY_NT);
+        if (!p) return override_fail(L, oi, o->key, "no such key");
+        /* fy_node_mapping_remove() would leak the pair; this frees pair and key. */
+        fy_node_free(fy_node_mapping_remove_by_key(parent, fy_node_pair_key(p)));
+        return 0;
+    }
+    int idx = path_index(comp);
+    struct fy_node *item = idx >= 0 ? fy_node_sequence_get_by_index(parent, idx) : NULL;
+    if (!item) return override_fail(L, oi, o->key, "no such list item");
+    fy_node_free(fy_node_sequence_remove(parent, item));
+    return 0;
+}
+
+static int apply_override(loader *L, int oi)
+{
+    const stf_override *o = &L->ov[oi];
+    char buf[256], *comps[32];
+    int n = 0;
+    if (!o->key || snprintf(buf, sizeof buf, "%s", o->key) >= (int)sizeof buf)
+        return override_fail(L, oi, o->key ? o->key : "", "key too long");
+    for (char *t = buf, *dot; n < 32; t = dot + 1) {
+        comps[n++] = t;
+        if (!(dot = strchr(t, '.'))) break;
+        *dot = '\0';
+    }
+    for (int i = 0; i < n; i++) {
+        if (!comps[i][0]) return override_fail(L, oi, o->key, "empty component in the key");
+    }
+    struct fy_node *parent = NULL;
+    if (walk_to_parent(L, oi, comps, n, &parent)) return SCENE_BAD;
+    return o->value ? set_last(L, oi, parent, comps[n - 1])
+                    : unset_last(L, oi, parent, comps[n - 1]);
+}
+
+/* ------------------------------------------------------------------------------ loading */
+
+static void ignore_diag(struct fy_diag *diag, void *user, const char *buf, size_t len)
+{
+    (void)diag, (void)user, (void)buf, (void)len;
+}
+
+/* Parses text; on a syntax error writes FILE:LINE:COL from libfyaml's collected errors. */
+static struct fy_document *parse_text(loader *L, const char *text)
+{
+    struct fy_diag_cfg dc;
+    fy_diag_cfg_default(&dc);
+    dc.fp = NULL;
+    dc.output_fn = ignore_diag;
+    dc.level = FYET_ERROR;
+    struct fy_diag *diag = fy_diag_create(&dc);
+    if (!diag) {
+        snprintf(L->err, L->errlen, "%s: out of memory", L->file);
+        return NULL;
+    }
+    fy_diag_set_collect_errors(diag, true);
+    struct fy_parse_cfg cfg = {.flags = FYPCF_QUIET | FYPCF_RESOLVE_DOCUMENT, .diag = diag};
+    struct fy_document *fyd = fy_document_build_from_string(&cfg, text, FY_NT);
+    if (!fyd) {
+        void *it = NULL;
+        struct fy_diag_error *e = fy_diag_errors_iterate(diag, &it);
+        if (e)
+            snprintf(L->err, L->errlen, "%s:%d:%d: YAML syntax error: %s", L->file, e->line,
+                     e->column, e->msg);
+        else
+            snprintf(L->err, L->errlen, "%s: YAML syntax error", L->file);
+    }
+    /* Errors collected later (override values built in this document) would leak. */
+    fy_diag_set_collect_errors(diag, false);
+    fy_diag_destroy(diag); /* the document keeps its own reference */
+    return fyd;
+}
+
+static int load(loader *L, const char *text)
+{
+    stf_scene *s = L->s;
+    L->fyd = parse_text(L, text);
+    if (!L->fyd) return SCENE_BAD;
+    for (int i = 0; i < L->nov; i++) {
+        if (apply_override(L, i)) return SCENE_BAD;
+    }
+    s->text = fy_emit_document_to_string(L->fyd, FYECF_MODE_BLOCK | FYECF_WIDTH_INF);
+    if (!s->text) s->text = calloc(1, 1);
+    return parse_scene(L);
+}
+
+int stf_scene_load_string(const char *name, const char *text, const stf_override *ov, int nov,
+                          stf_scene **out, char *err, size_t errlen)
+{
+    char dummy[8];
+    stf_scene *s = calloc(1, sizeof *s);
+    loader L = {.file = name ? name : "<string>",
+                .err = err ? err : dummy,
+                .errlen = err ? errlen : sizeof dummy,
+                .ov = ov,
+                .nov = ov ? nov : 0,
+                .s = s};
+    *out = NULL;
+    if (L.errlen) L.err[0] = '\0';
+    if (!s) return snprintf(L.err, L.errlen, "%s: out of memory", L.file), SCENE_BAD;
+    snprintf(s->path, sizeof s->path, "%s", L.file);
+    int rc = load(&L, text ? text : "");
+    if (L.fyd) fy_document_destroy(L.fyd);
+    if (rc) {
+        stf_scene_free(s);
+        return rc;
+    }
+    *out = s;
+    return 0;
+}
+
+static char *read_file(const char *path)
+{
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return NULL;
+    size_t cap = 4096, len = 0;
+    char *buf = malloc(cap);
+    while (buf) {
+        size_t want = cap - len - 1, got = fread(buf + len, 1, want, fp);
+        len += got;
+        if (got < want) {
+            if (ferror(fp)) break;
+            buf[len] = '\0';
+            fclose(fp);
+            return buf;
+        }
+        char *bigger = realloc(buf, cap *= 2);
+        if (!bigger) break;
+        buf = bigger;
+    }
+    int saved = errno;
+    free(buf);
+    fclose(fp);
+    errno = saved ? saved : ENOMEM;
+    return NULL;
+}
+
+int stf_scene_load(const char *path, const stf_override *ov, int nov, stf_scene **out, char *err,
+                   size_t errlen)
+{
+    errno = 0;
+    char *text = read_file(path);
+    if (!text) {
+        *out = NULL;
+        if (err && errlen) snprintf(err, errlen, "%s: cannot read: %s", path, strerror(errno));
+        return SCENE_BAD;
+    }
+    int rc = stf_scene_load_string(path, text, ov, nov, out, err, errlen);
+    free(text);
+    return rc;
+}
+
+void stf_scene_free(stf_scene *s)
+{
+    if (!s) return;
+    free(s->blocks);
+    free(s->bodies);
+    free(s->expect);
+    free(s->points);
+    free(s->text);
+    free(s);
+}

@@ -1,0 +1,258 @@
+/* springs.c - adjust springs (Clavet Alg. 4) and apply their displacements (Alg. 3, Eq. 6). */
+#include "springs.h"
+
+#include <math.h>
+#include <omp.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fluid.h"
+
+static int alloc_rows(stf_springs *s, int n_alloc, int stride)
+{
+    size_t slots = (size_t)n_alloc * (size_t)stride;
+    int32_t *p = realloc(s->partner, slots * sizeof *p);
+    if (p) s->partner = p;
+    int32_t *p2 = realloc(s->partner2, slots * sizeof *p2);
+    if (p2) s->partner2 = p2;
+    double *r = realloc(s->rest, slots * sizeof *r);
+    if (r) s->rest = r;
+    double *r2 = realloc(s->rest2, slots * sizeof *r2);
+    if (r2) s->rest2 = r2;
+    return p && p2 && r && r2 ? 0 : -1;
+}
+
+int springs_init(stf_springs *s, int n)
+{
+    memset(s, 0, sizeof *s);
+    s->stride = 32;
+    s->nthreads = omp_get_max_threads();
+    return springs_resize(s, n);
+}
+
+void springs_free(stf_springs *s)
+{
+    free(s->partner);
+    free(s->partner2);
+    free(s->rest);
+    free(s->rest2);
+    free(s->count);
+    free(s->count2);
+    free(s->mark);
+    memset(s, 0, sizeof *s);
+}
+
+int springs_resize(stf_springs *s, int n)
+{
+    if (n <= s->n_alloc) return 0;
+    int cap = n + n / 4 + 16;
+    int32_t *c = realloc(s->count, (size_t)cap * sizeof *c);
+    if (c) s->count = c;
+    int32_t *c2 = realloc(s->count2, (size_t)cap * sizeof *c2);
+    if (c2) s->count2 = c2;
+    int64_t *m = realloc(s->mark, (size_t)cap * (size_t)s->nthreads * sizeof *m);
+    if (m) s->mark = m;
+    if (!c || !c2 || !m || alloc_rows(s, cap, s->stride) != 0) return -1;
+    /* Rows keep their stride, so existing lists stay where they are. */
+    memset(s->count + s->n_alloc, 0, (size_t)(cap - s->n_alloc) * sizeof *c);
+    for (size_t k = 0; k < (size_t)cap * (size_t)s->nthreads; k++) s->mark[k] = -1;
+    s->n_alloc = cap;
+    return 0;
+}
+
+/* Widens every row (a particle gained more springs than the stride holds). */
+static int widen(stf_springs *s, int n, int stride)
+{
+    int32_t *p = malloc((size_t)s->n_alloc * (size_t)stride * sizeof *p);
+    double *r = malloc((size_t)s->n_alloc * (size_t)stride * sizeof *r);
+    if (!p || !r) {
+        free(p);
+        free(r);
+        return -1;
+    }
+    for (int i = 0; i < n; i++) {
+        memcpy(p + (size_t)i * stride, s->partner + (size_t)i * s->stride,
+               (size_t)s->count[i] * sizeof *p);
+        memcpy(r + (size_t)i * stride, s->rest + (size_t)i * s->stride,
+               (size_t)s->count[i] * sizeof *r);
+    }
+    free(s->partner);
+    free(s->rest);
+    s->partner = p;
+    s->rest = r;
+    s->stride = stride;
+    free(s->partner2);
+    free(s->rest2);
+    s->partner2 = NULL;
+    s->rest2 = NULL;
+    int32_t *p2 = malloc((size_t)s->n_alloc * (size_t)stride * sizeof *p2);
+    double *r2 = malloc((size_t)s->n_alloc * (size_t)stride * sizeof *r2);
+    s->partner2 = p2;
+    s->rest2 = r2;
+    return p2 && r2 ? 0 : -1;
+}
+
+/* Clavet Alg. 4 for one spring: the rest length creeps towards the current length once the
+ * deformation exceeds yield_ratio * L (plasticity). */
+static double plastic_rest(double L, double r, double gamma, double alpha, double dt)
+{
+    double tol = gamma * L;
+    if (r > L + tol) return L + dt * alpha * (r - L - tol);
+    if (r < L - tol) return L - dt * alpha * (L - tol - r);
+    return L;
+}
+
+/* Rebuilds particle i's spring list into the second buffer; returns its new count (may
+ * exceed the stride, then nothing past the stride was written). */
+static int adjust_one(stf_fluid *f, int i, int64_t stamp, int64_t *mark)
+{
+    stf_springs *s = &f->springs;
+    const double *x = f->x;
+    double h = f->h;
+    const int32_t *op = s->partner + (size_t)i * s->stride;
+    const double *oL = s->rest + (size_t)i * s->stride;
+    int32_t *np = s->partner2 + (size_t)i * s->stride;
+    double *nL = s->rest2 + (size_t)i * s->stride;
+    int cnt = 0;
+    for (int k = 0; k < s->count[i]; k++) {
+        int j = op[k];
+        mark[j] = stamp;
+        double rx = x[3 * j] - x[3 * i], ry = x[3 * j + 1] - x[3 * i + 1],
+               rz = x[3 * j + 2] - x[3 * i + 2];
+        double r = sqrt(rx * rx + ry * ry + rz * rz);
+        double L = plastic_rest(oL[k], r, f->def.yield_ratio, f->def.plasticity, f->dt_now);
+        if (L > h) continue; /* Alg. 4: springs longer than h break */
+        if (cnt < s->stride) {
+            np[cnt] = j;
+            nL[cnt] = L;
+        }
+        cnt++;
+    }
+    const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
+    for (int k = 0; k < f->grid.count[i]; k++) {
+        int j = nb[k];
+        if (mark[j] == stamp) continue;
+        double rx = x[3 * j] - x[3 * i], ry = x[3 * j + 1] - x[3 * i + 1],
+               rz = x[3 * j + 2] - x[3 * i + 2];
+        double r = sqrt(rx * rx + ry * ry + rz * rz);
+        if (r >= h) continue;
+        /* A new spring starts at its current length, so it carries no force on creation. */
+        if (cnt < s->stride) {
+            np[cnt] = j;
+            nL[cnt] = r;
+        }
+        cnt++;
+    }
+    return cnt;
+}
+
+/* Alg. 3 with Eq. 6 for particle i: gathers -D/2 of each of its springs into f->dx. */
+static void displace_one(stf_fluid *f, int i, double dt, double khist_scale)
+{
+    const stf_springs *s = &f->springs;
+    const double *x = f->x, *D = f->hist.D;
+    double h = f->h, dx = 0, dy = 0, dz = 0, ksum = 0;
+    int n = s->count[i];
+    const int32_t *p = s->partner + (size_t)i * s->stride;
+    const double *Ls = s->rest + (size_t)i * s->stride;
+    for (int k = 0; k < n; k++) {
+        int j = p[k];
+        double rx = x[3 * j] - x[3 * i], ry = x[3 * j + 1] - x[3 * i + 1],
+               rz = x[3 * j + 2] - x[3 * i + 2];
+        double r = sqrt(rx * rx + ry * ry + rz * rz);
+        if (r <= 1e-12 * h) continue; /* coincident: no direction to push along */
+        double kij = f->def.k_min;
+        if (khist_scale > 0) {
+            double ex = D[3 * i] - D[3 * j], ey = D[3 * i + 1] - D[3 * j + 1],
+                   ez = D[3 * i + 2] - D[3 * j + 2];
+            double kh = khist_scale * sqrt(ex * ex + ey * ey + ez * ez); /* Eq. 6 */
+            kij += kh;
+            ksum += kh;
+        }
+        double L = Ls[k];
+        double mag = 0.5 * dt * dt * kij * (1.0 - L / h) * (L - r) / r;
+        dx -= mag * rx;
+        dy -= mag * ry;
+        dz -= mag * rz;
+    }
+    f->dx[3 * i] = dx;
+    f->dx[3 * i + 1] = dy;
+    f->dx[3 * i + 2] = dz;
+    if (f->khist_mean) f->khist_mean[i] = n > 0 ? (float)(ksum / n) : 0.0f;
+}
+
+int springs_step(stf_fluid *f, double dt)
+{
+    stf_springs *s = &f->springs;
+    int n = f->n;
+    if (omp_get_max_threads() > s->nthreads) { /* more threads than at creation */
+        int64_t *m = realloc(s->mark, (size_t)s->n_alloc * (size_t)omp_get_max_threads() * sizeof *m);
+        if (!m) return -1;
+        s->mark = m;
+        s->nthreads = omp_get_max_threads();
+        for (size_t k = 0; k < (size_t)s->n_alloc * (size_t)s->nthreads; k++) s->mark[k] = -1;
+    }
+    for (;;) {
+        int most = 0;
+        int64_t base = (int64_t)f->steps * (int64_t)s->n_alloc;
+#pragma omp parallel reduction(max : most)
+        {
+            int64_t *mark = s->mark + (size_t)omp_get_thread_num() * (size_t)s->n_alloc;
+#pragma omp for schedule(static)
+            for (int i = 0; i < n; i++) {
+                s->count2[i] = adjust_one(f, i, base + i, mark);
+                if (s->count2[i] > most) most = s->count2[i];
+            }
+        }
+        if (most <= s->stride) break;
+        if (widen(s, n, most + most / 2) != 0) return -1;
+    }
+    int32_t *tp = s->partner, *tc = s->count;
+    double *tr = s->rest;
+    s->partner = s->partner2, s->count = s->count2, s->rest = s->rest2;
+    s->partner2 = tp, s->count2 = tc, s->rest2 = tr;
+
+    double khist_scale = has(f, STF_EFFECT_HISTORY)
+                             ? f->def.k_hist * history_scale(f->def.q, dt)
+                             : 0.0;
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++) displace_one(f, i, dt, khist_scale);
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < 3 * n; i++) f->x[i] += f->dx[i];
+    return 0;
+}
+
+int springs_permute(stf_springs *s, const int32_t *perm, const int32_t *inv, int n)
+{
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++) {
+        int o = perm[i];
+        int c = 0;
+        for (int k = 0; k < s->count[o]; k++) {
+            int j = inv[s->partner[(size_t)o * s->stride + k]];
+            if (j < 0) continue; /* the partner was removed */
+            s->partner2[(size_t)i * s->stride + c] = j;
+            s->rest2[(size_t)i * s->stride + c] = s->rest[(size_t)o * s->stride + k];
+            c++;
+        }
+        s->count2[i] = c;
+    }
+    int32_t *tp = s->partner, *tc = s->count;
+    double *tr = s->rest;
+    s->partner = s->partner2, s->count = s->count2, s->rest = s->rest2;
+    s->partner2 = tp, s->count2 = tc, s->rest2 = tr;
+    return 0;
+}
+
+long springs_total(const stf_springs *s, int n)
+{
+    long t = 0;
+    for (int i = 0; i < n; i++) t += s->count[i];
+    return t / 2;
+}
+
+size_t springs_bytes(const stf_springs *s)
+{
+    return (size_t)s->n_alloc * ((size_t)s->stride * 2 * (sizeof(int32_t) + sizeof(double)) +
+                                 2 * sizeof(int32_t) + (size_t)s->nthreads * sizeof(int64_t));
+}

@@ -1,0 +1,35 @@
+/* springs.h - Clavet's plastic springs with the paper's history stiffness (Eq. 6).
+ *
+ * Each spring is stored on both of its particles (partner index and rest length), so every
+ * particle updates and applies its own side in parallel with no shared writes; both sides see
+ * the same inputs and compute bit-identical rest lengths, so the network stays symmetric. */
+#ifndef STF_SPRINGS_H
+#define STF_SPRINGS_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+typedef struct stf_springs {
+    int stride;       /* slots per particle */
+    int n_alloc;
+    int32_t *partner; /* n_alloc * stride */
+    double *rest;     /* n_alloc * stride: rest lengths L, m */
+    int32_t *count;   /* n_alloc */
+    int32_t *partner2, *count2; /* the lists being rebuilt */
+    double *rest2;
+    int64_t *mark;    /* nthreads * n_alloc: which particle last saw a spring to j */
+    int nthreads;
+} stf_springs;
+
+struct stf_fluid;
+int springs_init(stf_springs *s, int n);
+void springs_free(stf_springs *s);
+int springs_resize(stf_springs *s, int n);
+/* Alg. 4 (add/remove springs, plasticity) and Alg. 3 (displacements, with Eq. 6 stiffness
+ * when the history effect is on), on the predicted positions. Returns 0, -1 out of memory. */
+int springs_step(struct stf_fluid *f, double dt);
+int springs_permute(stf_springs *s, const int32_t *perm, const int32_t *inv, int n);
+long springs_total(const stf_springs *s, int n);
+size_t springs_bytes(const stf_springs *s);
+
+#endif

@@ -1,0 +1,262 @@
+/* stf.h - shear-thickening fluid (STF) simulation: the public API of libstf.
+ *
+ * A particle fluid after Ozgen, Kallmann & Brown: Clavet-style viscoelastic SPH
+ * (double density relaxation, viscosity impulses, plastic springs) whose springs gain a
+ * history stiffness k_hist * |D^q x_i - D^q x_j| from a fractional derivative of the
+ * particle velocities, plus the boundary treatment of the paper's section 3.3.
+ *
+ * Units are SI throughout (m, kg, s). The z axis points up (as in ODE scenes).
+ *
+ *   stf_fluid_def d = stf_default_fluid_def();
+ *   d.effects = STF_EFFECT_GRAVITY | STF_EFFECT_PRESSURE;
+ *   stf_fluid *f;
+ *   if (stf_fluid_create(&d, &f, err, sizeof err) != 0) { puts(err); }
+ *   stf_fluid_add_block(f, lo, hi, v0);
+ *   stf_fluid_step(f, 1e-3);
+ *   stf_fluid_destroy(f);
+ */
+#ifndef STF_H
+#define STF_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define STF_VERSION "0.1.0"
+
+/* Effects: stages of the step. An effect not named is not run and allocates nothing. */
+enum stf_effect {
+    STF_EFFECT_GRAVITY = 1u << 0,        /* constant body acceleration */
+    STF_EFFECT_VISCOSITY = 1u << 1,      /* Clavet's pairwise viscosity impulses */
+    STF_EFFECT_PRESSURE = 1u << 2,       /* double density relaxation */
+    STF_EFFECT_SPRINGS = 1u << 3,        /* plastic springs (Clavet) */
+    STF_EFFECT_HISTORY = 1u << 4,        /* history stiffness on the springs (Eq. 2-6) */
+    STF_EFFECT_BOUNDARY_STICK = 1u << 5, /* section 3.3 tangential damping at walls */
+};
+
+/* How the fractional derivative's history is kept. */
+enum stf_history_mode {
+    STF_HISTORY_WINDOW = 0, /* exact Eq. 3 over the last d steps (12 n d bytes) */
+    STF_HISTORY_FULL = 1,   /* exact Eq. 3 over every past step (memory grows with steps) */
+};
+
+typedef struct stf_fluid_def {
+    unsigned effects;      /* bit set of enum stf_effect */
+    double spacing;        /* initial particle spacing, m (> 0) */
+    double density;        /* physical density, kg/m^3; particle mass = density*spacing^3 */
+    double h;              /* interaction radius, m; 0 means 2*spacing */
+    double gravity[3];     /* gravity acceleration, m/s^2 */
+    /* viscosity (Clavet Alg. 5): velocity impulse dt*(1-r/h)*(sigma*u + beta*u^2) per pair,
+       u the inward radial relative speed (m/s) */
+    double sigma;          /* linear viscosity, 1/s (>= 0) */
+    double beta;           /* quadratic viscosity, 1/m (>= 0) */
+    /* double density relaxation (Clavet Alg. 2) */
+    double k;              /* pressure stiffness, m/s^2 (> 0) */
+    double k_near;         /* near-pressure stiffness, m/s^2 (>= 0) */
+    double rest_density;   /* rest kernel density (sum of (1-r/h)^2), dimensionless;
+                              0 means the value of the initial cubic lattice */
+    /* springs (Clavet Alg. 3-4) */
+    double k_min;          /* spring stiffness, 1/s^2 (>= 0) */
+    double yield_ratio;    /* tolerated deformation / rest length, dimensionless (>= 0) */
+    double plasticity;     /* rest-length creep rate alpha, 1/s (>= 0) */
+    /* history (Eq. 3-6): k = k_min + k_hist * dt^(1-q)/Gamma(3-q) * |sum a (v_i - v_j)| */
+    double q;              /* fractional order, in (0,1) */
+    int d;                 /* history window, steps (>= 1); ignored if memory > 0 */
+    double memory;         /* history window, s (> 0 overrides d: d = round(memory/dt)) */
+    double k_hist;         /* history stiffness gain, 1/s^2 per m/s^q (>= 0) */
+    int history_mode;      /* enum stf_history_mode */
+    /* boundary treatment (section 3.3) */
+    double stick;          /* tangential velocity at a wall is scaled by
+                              k_min / (k_min + stick * mean history stiffness); dimensionless */
+} stf_fluid_def;
+
+/* Defaults: a cornstarch-like viscoelastic fluid at 1 cm spacing with every effect on. */
+stf_fluid_def stf_default_fluid_def(void);
+
+/* Shapes a particle collides with. Distances are signed: > 0 outside the solid. */
+enum stf_shape {
+    STF_SHAPE_PLANE = 0,     /* half-space n.x < offset is solid (n in body frame) */
+    STF_SHAPE_SPHERE = 1,    /* radius */
+    STF_SHAPE_BOX = 2,       /* half extents */
+    STF_SHAPE_CAPSULE = 3,   /* radius, half length along local z */
+    STF_SHAPE_CYLINDER = 4,  /* radius, half length along local z */
+    STF_SHAPE_CONTAINER = 5, /* open-top box: inner half extents; the inside is free */
+    STF_SHAPE_CONVEX = 6,    /* convex hull of points (libccd MPR) */
+};
+
+typedef struct stf_collider_def {
+    int shape;              /* enum stf_shape */
+    double radius;          /* m: sphere, capsule, cylinder */
+    double half_length;     /* m: capsule and cylinder half length along local z */
+    double half[3];         /* m: box half extents; container inner half extents */
+    double wall;            /* m: container wall thickness (>= 0, for drawing and ODE) */
+    double normal[3];       /* plane normal (unit), body frame */
+    double offset;          /* m: plane offset along normal */
+    const double *points;   /* convex: 3*npoints coordinates in the body frame, m */
+    int npoints;            /* convex: number of points (>= 4) */
+    double friction;        /* fraction of tangential slip removed per contact, [0,1] */
+    int stick;              /* 1: section 3.3 boundary treatment applies at this surface */
+} stf_collider_def;
+
+stf_collider_def stf_default_collider_def(void);
+
+typedef struct stf_fluid stf_fluid;
+
+/* Creates a fluid from def; checks every field. Returns 0, or -1 with a message in err. */
+int stf_fluid_create(const stf_fluid_def *def, stf_fluid **out, char *err, size_t errlen);
+void stf_fluid_destroy(stf_fluid *f);
+
+/* Fills the box [lo,hi] (m) with particles on a cubic lattice at the fluid's spacing,
+ * moving with velocity v (m/s). Returns the number of particles added. */
+int stf_fluid_add_block(stf_fluid *f, const double lo[3], const double hi[3], const double v[3]);
+/* Adds one particle. Returns its index. */
+int stf_fluid_add_particle(stf_fluid *f, const double x[3], const double v[3]);
+
+/* Colliders: solids the particles cannot enter. Returns an id >= 0, or -1 with err. */
+int stf_fluid_add_collider(stf_fluid *f, const stf_collider_def *def, char *err, size_t errlen);
+/* Sets a collider's pose (position m, rotation 3x3 row-major body->world) and its velocity
+ * (linear m/s at the position, angular rad/s). */
+void stf_fluid_set_collider_state(stf_fluid *f, int id, const double pos[3], const double rot[9],
+                                  const double vel[3], const double angvel[3]);
+/* Removes the particles whose centres lie inside collider id (set-up of overlapping bodies).
+ * Returns how many were removed. */
+int stf_fluid_remove_inside(stf_fluid *f, int id);
+/* The impulse (N s) the fluid gave collider id during the last step, and its moment about
+ * the collider position (N m s). */
+void stf_fluid_collider_impulse(const stf_fluid *f, int id, double impulse[3], double moment[3]);
+/* Signed distance (m) from x to the collider's surface (> 0 outside). */
+double stf_fluid_collider_distance(const stf_fluid *f, int id, const double x[3]);
+
+/* Advances the fluid by dt seconds (one substep of the paper's Algorithm 1).
+ * Returns 0, or -1 on a numerical failure (see stf_fluid_failure). */
+int stf_fluid_step(stf_fluid *f, double dt);
+/* After a failed step: what failed ("NaN in position after effect 'pressure', particle 12"). */
+const char *stf_fluid_failure(const stf_fluid *f);
+
+/* Number of OpenMP threads used (0 = OpenMP default). Results do not depend on it. */
+void stf_set_threads(int n);
+
+/* State, copied out (arrays of 3*n doubles). */
+int stf_fluid_count(const stf_fluid *f);
+double stf_fluid_particle_mass(const stf_fluid *f);
+double stf_fluid_time(const stf_fluid *f);
+long stf_fluid_steps(const stf_fluid *f);
+void stf_fluid_get_positions(const stf_fluid *f, double *x);
+void stf_fluid_get_velocities(const stf_fluid *f, double *v);
+/* Per particle: mean history stiffness of its springs (1/s^2), 0 without history. */
+void stf_fluid_get_history_stiffness(const stf_fluid *f, float *k);
+/* Per particle: persistent id (index at creation). */
+void stf_fluid_get_ids(const stf_fluid *f, int32_t *id);
+/* Number of springs (0 without the springs effect). */
+long stf_fluid_spring_count(const stf_fluid *f);
+/* Bytes allocated for an effect's own storage (0 when the effect is off). */
+size_t stf_fluid_effect_bytes(const stf_fluid *f, unsigned effect);
+/* Seconds spent in an effect's stage since creation (wall clock). */
+double stf_fluid_effect_seconds(const stf_fluid *f, unsigned effect);
+/* The effective history window in steps (0 without history). */
+int stf_fluid_history_steps(const stf_fluid *f);
+/* FNV-1a hash of positions and velocities, for determinism tests. */
+uint64_t stf_fluid_hash(const stf_fluid *f);
+
+/* History weights (Eq. 3). For n >= 1 (steps since the start of history) and p in [0,n]:
+ * the weight a_{p,n}. Exposed for tests and the history analysis. */
+double stf_history_weight(double q, long p, long n);
+
+
+/* ---------------------------------------------------------------- scene files (YAML) */
+
+enum stf_motion {
+    STF_MOTION_DYNAMIC = 0,   /* moved by ODE under forces (needs mass > 0) */
+    STF_MOTION_KINEMATIC = 1, /* moved by a prescribed velocity / vibration */
+    STF_MOTION_STATIC = 2,    /* never moves */
+};
+
+typedef struct stf_block {
+    double lo[3], hi[3]; /* m: opposite corners of the box filled with particles */
+    double velocity[3];  /* m/s: initial velocity of its particles */
+    int line, col;       /* where it was given (1-based), for messages */
+} stf_block;
+
+typedef struct stf_vibration {
+    double axis[3];      /* unit direction of the displacement */
+    double amplitude;    /* m, >= 0 (0: no vibration) */
+    double frequency;    /* Hz, > 0 */
+    double jitter;       /* relative random change of the frequency, [0,1) */
+    double jitter_period;/* s, how often the frequency is redrawn (> 0) */
+    unsigned seed;       /* random seed of the frequency changes */
+} stf_vibration;
+
+typedef struct stf_body_def {
+    char name[64];          /* unique, [A-Za-z0-9_] */
+    stf_collider_def shape; /* shape, friction, stick (points owned by the scene) */
+    int motion;             /* enum stf_motion */
+    double mass;            /* kg (> 0 for dynamic); 0 with density > 0: from the volume */
+    double density;         /* kg/m^3, used when mass is 0 */
+    double position[3];     /* m, centre */
+    double quaternion[4];   /* orientation (w, x, y, z), normalised on load */
+    double velocity[3];     /* m/s */
+    double angular_velocity[3]; /* rad/s */
+    stf_vibration vibration;    /* kinematic bodies only */
+    int line, col;
+} stf_body_def;
+
+typedef struct stf_container_def {
+    int present;            /* 0: the scene has no container */
+    double size[3];         /* m: inner size (x, y, height); open top; floor at position.z */
+    double wall;            /* m: wall and floor thickness (> 0) */
+    double position[3];     /* m: centre of the floor's top face */
+    double friction;        /* [0,1] */
+    int stick;              /* 1: section 3.3 boundary treatment at its walls */
+    int motion;             /* enum stf_motion */
+    double mass;            /* kg, dynamic containers */
+    stf_vibration vibration;
+} stf_container_def;
+
+typedef struct stf_expectation {
+    char key[96];   /* metric key: "bounces", "ball.sink_time", "fluid.finger_height" */
+    char op[3];     /* one of "<", "<=", ">", ">=", "==" */
+    double value;   /* threshold, in the metric's unit */
+    int line, col;
+} stf_expectation;
+
+typedef struct stf_scene {
+    char path[512];         /* file it came from */
+    char *text;             /* the effective scene (after --set/--unset) as YAML text */
+    char name[64];
+    double duration;        /* s, simulated time (> 0) */
+    double dt;              /* s, substep (> 0) */
+    double frame_rate;      /* frames written per simulated second (> 0) */
+    double bounce_min_rise; /* m, 0: a quarter of the spacing */
+    stf_fluid_def fluid;
+    int nblocks;
+    stf_block *blocks;
+    stf_container_def container;
+    int nbodies;
+    stf_body_def *bodies;
+    int nexpect;
+    stf_expectation *expect;
+    double *points;         /* storage of convex points of all bodies */
+} stf_scene;
+
+/* One --set KEY=VALUE (value != NULL) or --unset KEY (value == NULL), applied in order. */
+typedef struct stf_override {
+    const char *key;   /* dotted path: "effects.history.q", "bodies.0.mass" */
+    const char *value; /* a YAML scalar or flow sequence, NULL to remove the key */
+} stf_override;
+
+/* Loads and checks a scene. Returns 0; or 2 (bad input) with
+ * "FILE:LINE:COL: KEY: what is wrong (allowed: ...)" in err. */
+int stf_scene_load(const char *path, const stf_override *ov, int nov, stf_scene **out, char *err,
+                   size_t errlen);
+/* Same from a string; name is used in messages as the file name. */
+int stf_scene_load_string(const char *name, const char *text, const stf_override *ov, int nov,
+                          stf_scene **out, char *err, size_t errlen);
+void stf_scene_free(stf_scene *s);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,65 @@
+/* report.c - `stf report OUT.h5 [--json]`: the metrics of a finished or interrupted run. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+#include "metrics.h"
+
+static void line(const char *name, double v, const char *unit)
+{
+    if (isnan(v)) printf("  %-22s never\n", name);
+    else printf("  %-22s %.4g %s\n", name, v, unit);
+}
+
+int cli_report(int argc, char **argv)
+{
+    const char *path = NULL;
+    int json = 0;
+    for (int i = 0; i < argc; i++) {
+        if (!strcmp(argv[i], "--json")) json = 1;
+        else if (argv[i][0] == '-' || path) {
+            fprintf(stderr, "stf report: unexpected argument '%s' (usage: stf report OUT.h5 [--json])\n", argv[i]);
+            return 2;
+        } else path = argv[i];
+    }
+    if (!path) {
+        fprintf(stderr, "stf report: no output file given (usage: stf report OUT.h5 [--json])\n");
+        return 2;
+    }
+    stf_metrics m;
+    char err[1024];
+    if (stf_metrics_compute(path, &m, err, sizeof err) != 0) {
+        fprintf(stderr, "stf report: %s\n", err);
+        return 2;
+    }
+    if (json) {
+        char *s = stf_metrics_json(&m);
+        fputs(s ? s : "{}\n", stdout);
+        free(s);
+        return 0;
+    }
+    printf("%s\n", path);
+    line("time_end", m.time_end, "s");
+    line("surface_height", m.surface_height, "m");
+    for (int k = 0; k < m.nbodies; k++) {
+        const stf_body_metrics *b = &m.bodies[k];
+        printf(" body %s\n", b->name);
+        line("first_contact_time", b->first_contact_time, "s");
+        printf("  %-22s %d\n", "bounces", b->bounces);
+        line("max_rebound_height", b->max_rebound_height, "m");
+        line("roll_distance", b->roll_distance, "m");
+        line("sink_time", b->sink_time, "s");
+        line("float_duration", b->float_duration, "s");
+        printf("  %-22s %.4g %.4g %.4g m\n", "final_position", b->final_position[0],
+               b->final_position[1], b->final_position[2]);
+    }
+    printf(" fluid\n  %-22s %ld\n  %-22s %ld\n", "particles", m.particles, "escaped", m.escaped);
+    line("max_speed", m.max_speed, "m/s");
+    printf("  %-22s %s\n", "nan", m.nan ? "yes" : "no");
+    line("com_rebound_height", m.com_rebound_height, "m");
+    line("finger_height", m.finger_height, "m");
+    line("surface_roughness", m.surface_roughness, "m");
+    return 0;
+}
