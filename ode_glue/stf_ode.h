@@ -27,7 +27,7 @@ extern "C" {
 typedef struct stf_ode stf_ode;
 
 typedef struct stf_ode_attach_def {
-    double friction; /* fraction of tangential slip of touching particles removed, [0,1]; 0.2 */
+    double friction; /* Coulomb friction coefficient of particle contacts, [0,1]; 0.2 */
     int stick;       /* 1: section 3.3 boundary treatment at this body's surface; 0 */
 } stf_ode_attach_def;
 

@@ -2,13 +2,16 @@
  *
  * A particle at a wall (within half a spacing of touching it) loses the part of its velocity
  * that goes into the wall, and its tangential velocity is lowered in proportion to the mean
- * history stiffness of its springs: v_t <- v_t * k_min / (k_min + stick * k_hist_mean).
+ * history stiffness of its springs: v_t decays at the rate stick * kh / (k_min + kh), with kh
+ * the mean history stiffness of its springs (a rate, so the result does not depend on dt).
  * Solid-like fluid then sticks to the walls and passes its load to them; as the history
  * stiffness fades the factor returns to 1 and the wall is an ordinary one. Velocities are
  * relative to the wall, and each change is an impulse the wall receives back. */
+#include <math.h>
+
 #include "fluid.h"
 
-static int stick_one(stf_fluid *f, const collider *c, int i, double *imp)
+static int stick_one(stf_fluid *f, const collider *c, int i, double dt, double *imp)
 {
     const double *x = f->x + 3 * i;
     double *v = f->v + 3 * i;
@@ -20,8 +23,7 @@ static int stick_one(stf_fluid *f, const collider *c, int i, double *imp)
     for (int a = 0; a < 3; a++) vrel[a] = v[a] - vb[a];
     double vn = vrel[0] * nrm[0] + vrel[1] * nrm[1] + vrel[2] * nrm[2];
     double kh = f->khist_mean ? f->khist_mean[i] : 0.0;
-    double keep = f->def.k_min > 0 ? f->def.k_min / (f->def.k_min + f->def.stick * kh)
-                                   : (kh > 0 ? 0.0 : 1.0);
+    double keep = kh > 0 ? exp(-f->def.stick * kh / (f->def.k_min + kh) * dt) : 1.0;
     double old[3] = {v[0], v[1], v[2]};
     double vn_keep = vn < 0 ? 0.0 : vn; /* cancel the part going into the wall */
     for (int a = 0; a < 3; a++) {
@@ -34,14 +36,13 @@ static int stick_one(stf_fluid *f, const collider *c, int i, double *imp)
 
 void boundary_stick(stf_fluid *f, double dt)
 {
-    (void)dt;
     int n = f->n;
     for (int k = 0; k < f->ncolliders; k++) {
         collider *c = &f->colliders[k];
         if (!c->def.stick) continue;
         char *hit = f->hit;
 #pragma omp parallel for schedule(static)
-        for (int i = 0; i < n; i++) hit[i] = (char)stick_one(f, c, i, f->dx);
+        for (int i = 0; i < n; i++) hit[i] = (char)stick_one(f, c, i, dt, f->dx);
         collider_take_reaction(c, f->dx, f->x, hit, n);
     }
 }

@@ -320,8 +320,10 @@ static int maybe_near(const collider *c, const double x[3], double margin)
     return d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= R * R;
 }
 
-/* Projects particle i out of collider c and removes `friction` of its tangential slip;
- * stores the impulse given to the particle in imp. Returns 1 on contact. */
+/* Projects particle i out of collider c and applies Coulomb friction: the tangential slip
+ * relative to the surface drops by at most friction times the normal velocity change, so
+ * the result does not depend on dt. Stores the impulse given to the particle in imp.
+ * Returns 1 on contact. */
 static int collide_one(stf_fluid *f, const collider *c, int i, double dt, double *imp)
 {
     double *x = f->x + 3 * i;
@@ -331,15 +333,24 @@ static int collide_one(stf_fluid *f, const collider *c, int i, double dt, double
     if (d >= rp) return 0;
     double old[3] = {x[0], x[1], x[2]};
     for (int a = 0; a < 3; a++) x[a] += (rp - d) * nrm[a];
+    double jn = (rp - d) / dt; /* normal velocity change so far, m/s */
     double vb[3], vrel[3];
     collider_velocity_at(c, x, vb);
     for (int a = 0; a < 3; a++) vrel[a] = (x[a] - f->xprev[3 * i + a]) / dt - vb[a];
     double vn = vrel[0] * nrm[0] + vrel[1] * nrm[1] + vrel[2] * nrm[2];
-    double mu = c->def.friction;
+    if (vn < 0) { /* still approaching (a wall moving into the fluid): stop it */
+        for (int a = 0; a < 3; a++) x[a] -= dt * vn * nrm[a];
+        jn -= vn;
+    }
+    double vt[3], vt2 = 0;
     for (int a = 0; a < 3; a++) {
-        double vt = vrel[a] - vn * nrm[a];
-        /* approaching relative motion is removed too (a wall moving into the fluid) */
-        x[a] -= dt * (mu * vt + (vn < 0 ? vn * nrm[a] : 0));
+        vt[a] = vrel[a] - vn * nrm[a];
+        vt2 += vt[a] * vt[a];
+    }
+    if (vt2 > 0) {
+        double cut = c->def.friction * jn / sqrt(vt2);
+        if (cut > 1) cut = 1;
+        for (int a = 0; a < 3; a++) x[a] -= dt * cut * vt[a];
     }
     for (int a = 0; a < 3; a++) imp[3 * i + a] = f->mass * (x[a] - old[a]) / dt;
     return 1;

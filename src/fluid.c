@@ -19,18 +19,19 @@ stf_fluid_def stf_default_fluid_def(void)
     d.gravity[2] = -9.81;
     d.sigma = 2.0;
     d.beta = 0.0;
-    d.k = 400.0;
-    d.k_near = 1000.0;
+    d.k = 1000.0;
+    d.k_near = 200.0;
     d.rest_density = 0.0;
-    d.k_min = 1000.0;
-    d.yield_ratio = 0.1;
+    d.k_min = 100.0;
+    d.yield_ratio = 0.0;
     d.plasticity = 2.0;
     d.q = 0.5;
     d.d = 150;
     d.memory = 0.0;
-    d.k_hist = 10.0 * d.k_min; /* the paper's stable maximum, used for its results */
+    d.k_hist = 1000.0 * d.k_min; /* see README: the paper's 10 k_min in its units */
     d.history_mode = STF_HISTORY_WINDOW;
-    d.stick = 1.0;
+    d.stick = 200.0;
+    d.jitter = 0.2;
     return d;
 }
 
@@ -90,22 +91,34 @@ static int check_def(const stf_fluid_def *d, char *err, size_t errlen)
         if (!(d->memory >= 0 && isfinite(d->memory))) FAIL("memory: must be >= 0 (got %g)", d->memory);
         if (!(d->k_hist >= 0 && isfinite(d->k_hist))) FAIL("k_hist: must be >= 0 (got %g)", d->k_hist);
     }
+    if (!(d->jitter >= 0 && d->jitter <= 0.45)) FAIL("jitter: must be in [0, 0.45] (got %g)", d->jitter);
     if (!(d->stick >= 0 && isfinite(d->stick))) FAIL("stick: must be >= 0 (got %g)", d->stick);
     return 0;
 }
 
-/* Kernel density of a particle inside a cubic lattice at the given spacing. */
-static double lattice_density(double spacing, double h)
+/* The rest density that makes the initial cubic lattice an equilibrium.
+ *
+ * Near-pressure is always repulsive, so with rho0 equal to the lattice's kernel density the
+ * fluid swells until its pressure is negative enough to balance it (about 10% in height for
+ * the defaults). Choosing rho0 = rho_lat + (k_near/k) * rho_near_lat * S2/S1, with S1, S2 the
+ * sums of (1-q) and (1-q)^2 weighted by |cos| to the neighbours, cancels the two pressures
+ * along any lattice axis, so a block starts at rest at its physical density. */
+static double lattice_rest_density(double spacing, double h, double k, double k_near)
 {
     int m = (int)ceil(h / spacing);
-    double rho = 0;
+    double rho = 0, rho_near = 0, s1 = 0, s2 = 0;
     for (int a = -m; a <= m; a++)
         for (int b = -m; b <= m; b++)
             for (int c = -m; c <= m; c++) {
                 double r = spacing * sqrt((double)(a * a + b * b + c * c));
-                if (r > 0 && r < h) rho += (1 - r / h) * (1 - r / h);
+                if (r <= 0 || r >= h) continue;
+                double w = 1 - r / h, cosz = fabs(c * spacing / r);
+                rho += w * w;
+                rho_near += w * w * w;
+                s1 += w * cosz;
+                s2 += w * w * cosz;
             }
-    return rho;
+    return k > 0 ? rho + (k_near / k) * rho_near * s2 / s1 : rho;
 }
 
 int stf_fluid_create(const stf_fluid_def *def, stf_fluid **out, char *err, size_t errlen)
@@ -117,8 +130,11 @@ int stf_fluid_create(const stf_fluid_def *def, stf_fluid **out, char *err, size_
     f->def = *def;
     f->h = def->h > 0 ? def->h : 2.0 * def->spacing;
     f->mass = def->density * def->spacing * def->spacing * def->spacing;
-    f->rest_density = def->rest_density > 0 ? def->rest_density : lattice_density(def->spacing, f->h);
+    f->rest_density = def->rest_density > 0
+                          ? def->rest_density
+                          : lattice_rest_density(def->spacing, f->h, def->k, def->k_near);
     f->reorder_interval = 16;
+    pressure_wall_table(f);
     *out = f;
     return 0;
 }
@@ -195,6 +211,20 @@ int stf_fluid_add_particle(stf_fluid *f, const double x[3], const double v[3])
     return i;
 }
 
+/* A deterministic offset of up to amp in each axis, from the particle id: a perfect cubic
+ * lattice at rest is a crystal with a shear modulus that a liquid does not have. */
+static void lattice_jitter(double amp, uint32_t id, double x[3])
+{
+    if (amp <= 0) return;
+    uint32_t h = id * 2654435761u + 12345u;
+    for (int a = 0; a < 3; a++) {
+        h ^= h >> 15;
+        h *= 2246822519u;
+        h ^= h >> 13;
+        x[a] += amp * (2.0 * (h & 0xffffff) / 16777216.0 - 1.0);
+    }
+}
+
 int stf_fluid_add_block(stf_fluid *f, const double lo[3], const double hi[3], const double v[3])
 {
     double s = f->def.spacing;
@@ -208,6 +238,7 @@ int stf_fluid_add_block(stf_fluid *f, const double lo[3], const double hi[3], co
         for (long b = 0; b < cnt[1]; b++)
             for (long a = 0; a < cnt[0]; a++) {
                 double x[3] = {lo[0] + (a + 0.5) * s, lo[1] + (b + 0.5) * s, lo[2] + (c + 0.5) * s};
+                lattice_jitter(f->def.jitter * s, (uint32_t)f->next_id, x);
                 if (stf_fluid_add_particle(f, x, v) < 0) return -1;
                 added++;
             }

@@ -8,6 +8,8 @@
 #include "springs.h"
 #include "stf.h"
 
+#define WALL_BINS 64
+
 /* Indices of the per-stage timers (stf_fluid_effect_seconds). */
 enum stage {
     STAGE_GRID,
@@ -40,6 +42,9 @@ struct stf_fluid {
     double *rho, *rho_near; /* n each, pressure effect only */
     float *khist_mean;      /* n: mean history stiffness of a particle's springs, 1/s^2 */
 
+    /* Solid walls as a half-space of lattice particles (pressure.c): kernel density, near
+       density, and the normal sums of (1-q) and (1-q)^2, tabulated by distance to the wall. */
+    double wall_table[4][WALL_BINS + 1];
     int ncolliders, collider_cap;
     collider *colliders;
 
@@ -54,6 +59,7 @@ struct stf_fluid {
 /* The effect stages (one file each). */
 void viscosity_apply(stf_fluid *f, double dt);               /* viscosity.c */
 void pressure_relax(stf_fluid *f, double dt);                /* pressure.c */
+void pressure_wall_table(stf_fluid *f);                       /* pressure.c */
 void collide_all(stf_fluid *f, double dt);                   /* collider.c */
 void boundary_stick(stf_fluid *f, double dt);                /* boundary.c */
 

@@ -1,12 +1,60 @@
-/* pressure.c - Clavet's double density relaxation (Alg. 2), Jacobi form.
+/* pressure.c - Clavet's double density relaxation (Alg. 2), Jacobi form, with solid walls.
  *
  * Densities are kernel sums rho_i = sum (1-r/h)^2 and rho_near_i = sum (1-r/h)^3 over the
  * neighbours; P = k (rho - rho0), P_near = k_near rho_near. Clavet moves i and j apart by
  * D/2 each while visiting i; visiting j later adds j's own D. Gathering both halves at once,
- * particle i moves by -dt^2/2 ((P_i+P_j)(1-q) + (Pn_i+Pn_j)(1-q)^2) along r_ij/r. */
+ * particle i moves by -dt^2/2 ((P_i+P_j)(1-q) + (Pn_i+Pn_j)(1-q)^2) along r_ij/r.
+ *
+ * Walls: a particle near a solid misses the neighbours the solid takes the place of, so its
+ * density is too low, and it is pulled towards the wall by negative pressure; a floating
+ * body then displaces more fluid than its volume and Archimedes fails. Each collider
+ * therefore counts as a half-space filled with lattice particles that carry the particle's
+ * own pressure (a mirror). Their sums depend only on the distance to the surface and are
+ * tabulated once; the push they give is an impulse the collider receives back. */
 #include <math.h>
+#include <string.h>
 
 #include "fluid.h"
+
+enum { W_RHO, W_RHO_NEAR, W_F1, W_F2 };
+
+void pressure_wall_table(stf_fluid *f)
+{
+    double s = f->def.spacing, h = f->h;
+    int m = (int)ceil(h / s) + 1;
+    for (int b = 0; b <= WALL_BINS; b++) {
+        double d = h * b / WALL_BINS, sum[4] = {0, 0, 0, 0};
+        /* virtual sites: the mirror of the fluid lattice, first layer s/2 inside the solid */
+        for (int layer = 0; layer <= m; layer++)
+            for (int a = -m; a <= m; a++)
+                for (int c = -m; c <= m; c++) {
+                    double dz = d + s * (0.5 + layer), dx = a * s, dy = c * s;
+                    double r = sqrt(dx * dx + dy * dy + dz * dz);
+                    if (r >= h) continue;
+                    double w = 1 - r / h, cosn = dz / r;
+                    sum[W_RHO] += w * w;
+                    sum[W_RHO_NEAR] += w * w * w;
+                    sum[W_F1] += w * cosn;
+                    sum[W_F2] += w * w * cosn;
+                }
+        for (int k = 0; k < 4; k++) f->wall_table[k][b] = sum[k];
+    }
+}
+
+/* Linear interpolation in the wall table at distance d (clamped to [0, h]). */
+static void wall_sums(const stf_fluid *f, double d, double out[4])
+{
+    double u = d / f->h * WALL_BINS;
+    if (u < 0) u = 0;
+    if (u >= WALL_BINS) {
+        out[0] = out[1] = out[2] = out[3] = 0;
+        return;
+    }
+    int b = (int)u;
+    double t = u - b;
+    for (int k = 0; k < 4; k++)
+        out[k] = (1 - t) * f->wall_table[k][b] + t * f->wall_table[k][b + 1];
+}
 
 static void density_one(stf_fluid *f, int i)
 {
@@ -22,6 +70,14 @@ static void density_one(stf_fluid *f, int i)
         double a = 1.0 - sqrt(r2) / h;
         rho += a * a;
         rho_near += a * a * a;
+    }
+    for (int c = 0; c < f->ncolliders; c++) {
+        double nrm[3], w[4];
+        double d = collider_sdf(&f->colliders[c], x + 3 * i, nrm);
+        if (d >= h) continue;
+        wall_sums(f, d, w);
+        rho += w[W_RHO];
+        rho_near += w[W_RHO_NEAR];
     }
     /* Store pressures, not densities: both halves of a pair need them. */
     f->rho[i] = f->def.k * (rho - f->rest_density);
@@ -50,6 +106,18 @@ static void relax_one(stf_fluid *f, int i, double dt)
     f->dx[3 * i + 2] = dz;
 }
 
+/* The mirror particles' push on i from collider c (m), stored in f->dx as an impulse. */
+static int wall_push_one(stf_fluid *f, const collider *c, int i, double dt, double *push)
+{
+    double nrm[3], w[4];
+    double d = collider_sdf(c, f->x + 3 * i, nrm);
+    if (d >= f->h) return 0;
+    wall_sums(f, d, w);
+    double mag = dt * dt * (f->rho[i] * w[W_F1] + f->rho_near[i] * w[W_F2]);
+    for (int a = 0; a < 3; a++) push[3 * i + a] = mag * nrm[a];
+    return 1;
+}
+
 void pressure_relax(stf_fluid *f, double dt)
 {
     int n = f->n;
@@ -57,6 +125,23 @@ void pressure_relax(stf_fluid *f, double dt)
     for (int i = 0; i < n; i++) density_one(f, i);
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) relax_one(f, i, dt);
+    /* Walls after the pairs, each collider's pushes gathered separately so its reaction is
+     * summed in particle order. The pair displacements wait in xprev-free scratch: apply
+     * them first, then the wall pushes (all from the same pressures). */
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < 3 * n; i++) f->x[i] += f->dx[i];
+    for (int c = 0; c < f->ncolliders; c++) {
+        collider *col = &f->colliders[c];
+        char *hit = f->hit;
+#pragma omp parallel for schedule(static)
+        for (int i = 0; i < n; i++) hit[i] = (char)wall_push_one(f, col, i, dt, f->dx);
+#pragma omp parallel for schedule(static)
+        for (int i = 0; i < n; i++)
+            if (hit[i])
+                for (int a = 0; a < 3; a++) {
+                    f->x[3 * i + a] += f->dx[3 * i + a];
+                    f->dx[3 * i + a] *= f->mass / dt; /* the impulse the particle got */
+                }
+        collider_take_reaction(col, f->dx, f->x, hit, n);
+    }
 }

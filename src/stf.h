@@ -47,6 +47,8 @@ typedef struct stf_fluid_def {
     unsigned effects;      /* bit set of enum stf_effect */
     double spacing;        /* initial particle spacing, m (> 0) */
     double density;        /* physical density, kg/m^3; particle mass = density*spacing^3 */
+    double jitter;         /* random offset of block particles from the lattice, in spacings,
+                              [0, 0.45]: breaks the crystal a cubic lattice would be */
     double h;              /* interaction radius, m; 0 means 2*spacing */
     double gravity[3];     /* gravity acceleration, m/s^2 */
     /* viscosity (Clavet Alg. 5): velocity impulse dt*(1-r/h)*(sigma*u + beta*u^2) per pair,
@@ -69,8 +71,8 @@ typedef struct stf_fluid_def {
     double k_hist;         /* history stiffness gain, 1/s^2 per m/s^q (>= 0) */
     int history_mode;      /* enum stf_history_mode */
     /* boundary treatment (section 3.3) */
-    double stick;          /* tangential velocity at a wall is scaled by
-                              k_min / (k_min + stick * mean history stiffness); dimensionless */
+    double stick;          /* 1/s: tangential velocity at a wall decays at the rate
+                              stick * kh / (k_min + kh), kh = mean history stiffness (>= 0) */
 } stf_fluid_def;
 
 /* Defaults: a cornstarch-like viscoelastic fluid at 1 cm spacing with every effect on. */
@@ -97,7 +99,7 @@ typedef struct stf_collider_def {
     double offset;          /* m: plane offset along normal */
     const double *points;   /* convex: 3*npoints coordinates in the body frame, m */
     int npoints;            /* convex: number of points (>= 4) */
-    double friction;        /* fraction of tangential slip removed per contact, [0,1] */
+    double friction;        /* Coulomb friction coefficient of particle contacts, [0,1] */
     int stick;              /* 1: section 3.3 boundary treatment applies at this surface */
 } stf_collider_def;
 

@@ -1,0 +1,135 @@
+# cli_bad_input.sh - bad input to the command-line tool: every case exits 2 (DESIGN: bad
+# input), says on stderr what is wrong and where (FILE:LINE:COL: KEY: ... for scene files,
+# the override for --set, the flag, the path), and leaves no output behind: an existing
+# out.h5 keeps its content and no out.xmf appears.
+#
+# usage: bash cli_bad_input.sh STF_BINARY PROJECT_DIR   (run in the build's tests directory)
+set -u
+
+STF=${1:?usage: cli_bad_input.sh STF_BINARY PROJECT_DIR}
+PROJ=${2:?usage: cli_bad_input.sh STF_BINARY PROJECT_DIR}
+BASE="$PROJ/tests/scenes/small_drop.yaml"
+WORK=$(mktemp -d "${PWD}/cli_bad_input.XXXXXX") || { echo "cli_bad_input: no work dir" >&2; exit 1; }
+trap 'rm -rf "$WORK"' EXIT
+cd "$WORK" || exit 1
+
+fails=0
+fail() { echo "cli_bad_input: FAIL: $*" >&2; fails=$((fails + 1)); }
+
+[ -r "$BASE" ] || { echo "cli_bad_input: $BASE missing" >&2; exit 1; }
+
+# The reference output file a failed run must not touch.
+printf 'not an h5 file: precious content %s\n' "$$" >out.h5
+cp out.h5 out.h5.ref
+
+# line_of FILE REGEX: 1-based number of the first line matching REGEX.
+line_of() { grep -n -E -m1 "$2" "$1" | cut -d: -f1; }
+
+# expect_bad NAME PATTERN... -- CMD ARGS...: CMD must exit 2, stderr must match every
+# PATTERN (grep -E), out.h5 must be unchanged and no out.xmf created.
+expect_bad() {
+    local name=$1
+    shift
+    local pats=()
+    while [ "$1" != "--" ]; do
+        pats+=("$1")
+        shift
+    done
+    shift
+    "$@" >"$name.stdout" 2>"$name.stderr"
+    local rc=$?
+    [ $rc -eq 2 ] || fail "$name: exit $rc, want 2 (command: $*; stderr: $(head -c 300 "$name.stderr"))"
+    [ -s "$name.stderr" ] || fail "$name: no message on stderr"
+    local p
+    for p in "${pats[@]}"; do
+        grep -E -q -e "$p" "$name.stderr" || fail "$name: stderr does not match /$p/: $(head -c 300 "$name.stderr")"
+    done
+    cmp -s out.h5 out.h5.ref || fail "$name: out.h5 was overwritten"
+    [ -e out.xmf ] && fail "$name: out.xmf was created" && rm -f out.xmf
+    cp out.h5.ref out.h5
+    return 0
+}
+
+# A scene made from the base scene by a sed script.
+mk() { sed -e "$2" "$BASE" >"$1"; }
+
+# --- scene files: FILE:LINE:COL: KEY: -------------------------------------------------
+mk missing.yaml '/^duration:/d'
+expect_bad missing 'missing\.yaml:1:1: duration: ' 'missing|required' -- \
+    "$STF" run missing.yaml -o out.h5 --quiet
+
+mk wrongtype.yaml 's/^  spacing: 0.01/  spacing: "abc"/'
+L=$(line_of wrongtype.yaml '^  spacing:')
+# the value starts at column 12 (13 inside the quotes)
+expect_bad wrongtype "wrongtype\\.yaml:$L:1[23]: fluid\\.spacing: " -- \
+    "$STF" run wrongtype.yaml -o out.h5 --quiet
+
+mk unknown.yaml 's/^frame_rate: 50/frame_rate: 50\ncolour: red/'
+L=$(line_of unknown.yaml '^colour:')
+expect_bad unknown "unknown\\.yaml:$L:1: colour: " 'unknown key' -- \
+    "$STF" run unknown.yaml -o out.h5 --quiet
+
+mk negspacing.yaml 's/^  spacing: 0.01/  spacing: -0.01/'
+L=$(line_of negspacing.yaml '^  spacing:')
+expect_bad negspacing "negspacing\\.yaml:$L:12: fluid\\.spacing: " '> 0' -- \
+    "$STF" run negspacing.yaml -o out.h5 --quiet
+
+mk q15.yaml 's/q: 0.5,/q: 1.5,/'
+L=$(line_of q15.yaml '^  history:')
+C=$(($(sed -n "${L}p" q15.yaml | awk '{print index($0, "1.5")}')))
+expect_bad q15 "q15\\.yaml:$L:$C: effects\\.history\\.q: " -- \
+    "$STF" run q15.yaml -o out.h5 --quiet
+
+mk d0.yaml 's/d: 50,/d: 0,/'
+L=$(line_of d0.yaml '^  history:')
+C=$(($(sed -n "${L}p" d0.yaml | awk '{print index($0, "d: 0") + 3}')))
+expect_bad d0 "d0\\.yaml:$L:$C: effects\\.history\\.d: " -- \
+    "$STF" run d0.yaml -o out.h5 --quiet
+
+mk nan.yaml 's/^  density: 1270/  density: .nan/'
+L=$(line_of nan.yaml '^  density:')
+expect_bad nan "nan\\.yaml:$L:12: fluid\\.density: " -- \
+    "$STF" run nan.yaml -o out.h5 --quiet
+
+mk outside.yaml 's/max: \[0.04, 0.04, 0.08\]/max: [0.3, 0.04, 0.08]/'
+L=$(line_of outside.yaml '^    - min:')
+expect_bad outside "outside\\.yaml:$L:[0-9]+: fluid\\.blocks\\.0: " 'outside the container' -- \
+    "$STF" run outside.yaml -o out.h5 --quiet
+
+# the same errors through `stf check`
+expect_bad check_q15 "q15\\.yaml:[0-9]+:[0-9]+: effects\\.history\\.q: " -- \
+    "$STF" check q15.yaml -o out.h5
+
+# --- the command line ------------------------------------------------------------------
+expect_bad set_spacing '--set fluid\.spacing=-1' 'fluid\.spacing: ' '> 0' -- \
+    "$STF" run "$BASE" -o out.h5 --quiet --set fluid.spacing=-1
+expect_bad set_q '--set effects\.history\.q=2' 'effects\.history\.q: ' -- \
+    "$STF" run "$BASE" -o out.h5 --quiet --set effects.history.q=2
+expect_bad unset_missing 'effects\.nothing' -- \
+    "$STF" run "$BASE" -o out.h5 --quiet --unset effects.nothing
+expect_bad bad_flag '--bogus' -- \
+    "$STF" run "$BASE" -o out.h5 --quiet --bogus
+expect_bad bad_threads '--threads' -- \
+    "$STF" run "$BASE" -o out.h5 --quiet --threads zero
+expect_bad bad_command 'unknown command' -- \
+    "$STF" frobnicate "$BASE"
+expect_bad no_scene 'nonexistent\.yaml' 'cannot read' -- \
+    "$STF" run nonexistent.yaml -o out.h5 --quiet
+
+# output in a directory that does not exist: nothing is created anywhere
+expect_bad no_dir 'no_such_dir/out\.h5' -- \
+    "$STF" run "$BASE" -o no_such_dir/out.h5 --quiet
+[ -e no_such_dir ] && fail "no_dir: the directory was created"
+
+# --- stf report on a file that is not an stf output ---------------------------------
+head -c 4096 /dev/urandom >random.h5
+expect_bad report_random 'random\.h5' -- "$STF" report random.h5
+expect_bad report_missing 'missing\.h5' -- "$STF" report missing.h5
+expect_bad report_json_random 'random\.h5' -- "$STF" report random.h5 --json
+
+if [ $fails -ne 0 ]; then
+    echo "cli_bad_input: $fails failure(s)" >&2
+    exit 1
+fi
+echo "cli_bad_input: ok"
+exit 0

@@ -1,0 +1,212 @@
+/* test_history.c - the fractional derivative of the paper's Eq. 3.
+ *
+ *  1. stf_history_weight(q, p, n) is the closed form a_{p,n} of Eq. 3 (end point, interior,
+ *     newest sample).
+ *  2. The scheme is the product-trapezoidal rule for the Riemann-Liouville integral of order
+ *     1-q of v, hence exact for piecewise-linear v. For a constant velocity v from t = 0
+ *     (x = v t) the Caputo derivative is D^q x = v t^(1-q) / Gamma(2-q), and
+ *     dt^(1-q)/Gamma(3-q) * sum_p a_{p,n} v must equal it to round-off, for every n. Checked
+ *     with the weights directly and through the library's history ring (src/history.h).
+ *  3. The window mode (Eq. 6, start index n-d): once more than d+1 samples were pushed, D is
+ *     v * sum_{k=0..d} w_k with the interior weights, which telescopes to
+ *     (d+1)^(2-q) - d^(2-q); it stays constant and below the full history's (2-q) n^(1-q).
+ */
+#include "history.h"
+#include "stf.h"
+#include "test_util.h"
+
+#include <stdlib.h>
+
+static const double qs[3] = {0.2, 0.5, 0.8};
+
+/* Eq. 3 written out independently of the library. */
+static double eq3(double q, long p, long n)
+{
+    double e = 2.0 - q;
+    if (p == n) return 1.0;
+    if (p == 0) return pow((double)(n - 1), e) - pow((double)n, 1.0 - q) * ((double)n + q - 2.0);
+    return pow((double)(n - p - 1), e) - 2.0 * pow((double)(n - p), e) + pow((double)(n - p + 1), e);
+}
+
+static void test_weights(void)
+{
+    static const long ns[] = {1, 2, 3, 5, 10, 57, 150, 1000};
+    for (int iq = 0; iq < 3; iq++) {
+        double q = qs[iq];
+        for (size_t in = 0; in < sizeof ns / sizeof ns[0]; in++) {
+            long n = ns[in];
+            long ps[] = {0, 1, n / 3, n / 2, n - 2, n - 1, n};
+            for (size_t ip = 0; ip < sizeof ps / sizeof ps[0]; ip++) {
+                long p = ps[ip];
+                if (p < 0 || p > n) continue;
+                double want = eq3(q, p, n), got = stf_history_weight(q, p, n);
+                CHECK(fabs(got - want) <= 1e-13 * fabs(want) + 1e-15,
+                      "q=%g p=%ld n=%ld: a=%.17g, Eq. 3 gives %.17g", q, p, n, got, want);
+            }
+        }
+        /* A few values by hand: a_{n,n} = 1; a_{0,1} = 1 - q; a_{0,2} = 1 - 2^(1-q) q;
+           the first interior weight a_{n-1,n} = 2^(2-q) - 2. */
+        CHECK_NEAR(stf_history_weight(q, 7, 7), 1.0, 0.0, "a_{n,n}");
+        CHECK_NEAR(stf_history_weight(q, 0, 1), 1.0 - q, 1e-15, "a_{0,1}");
+        CHECK_NEAR(stf_history_weight(q, 0, 2), 1.0 - pow(2.0, 1.0 - q) * q, 1e-15, "a_{0,2}");
+        CHECK_NEAR(stf_history_weight(q, 9, 10), pow(2.0, 2.0 - q) - 2.0, 1e-15, "a_{n-1,n}");
+        /* Interior weights depend on the lag n-p only (what lets the library precompute them
+           by lag), and shrink with the lag: the near past counts more (paper, Fig. 2). */
+        CHECK(stf_history_weight(q, 5, 20) == stf_history_weight(q, 105, 120),
+              "q=%g: interior weight depends on n-p only", q);
+        for (long k = 1; k < 200; k++) {
+            double wk = stf_history_weight(q, 1, k + 1), wk1 = stf_history_weight(q, 1, k + 2);
+            CHECK(wk > 0 && wk1 < wk, "q=%g: interior weights positive and decreasing at lag %ld", q,
+                  k);
+        }
+    }
+}
+
+/* Caputo (= Riemann-Liouville of order 1-q of v) derivative of x = v t. */
+static double caputo_linear(double q, double v, double t) { return v * pow(t, 1.0 - q) / tgamma(2.0 - q); }
+
+static void test_constant_velocity_direct(void)
+{
+    const double dt = 1e-3, v = 0.75;
+    for (int iq = 0; iq < 3; iq++) {
+        double q = qs[iq], worst = 0;
+        double scale = pow(dt, 1.0 - q) / tgamma(3.0 - q);
+        for (long n = 1; n <= 2000; n = n < 20 ? n + 1 : n + 97) {
+            double s = 0;
+            for (long p = 0; p <= n; p++) s += stf_history_weight(q, p, n) * v;
+            double got = scale * s, want = caputo_linear(q, v, (double)n * dt);
+            double rel = fabs(got - want) / want;
+            if (rel > worst) worst = rel;
+            CHECK(rel <= 1e-12, "q=%g n=%ld: scheme %.17g vs Caputo %.17g (rel %.3g)", q, n, got,
+                  want, rel);
+        }
+        printf("direct sum, q=%.1f: worst relative error %.3g\n", q, worst);
+    }
+}
+
+/* Through the library: history_init/push/derivative with a full history (window 0). */
+static void test_constant_velocity_library(void)
+{
+    const double dt = 1e-3;
+    const int np = 3; /* three particles with different constant velocities */
+    /* float32 ring: use values float represents exactly */
+    const double v[9] = {0.75, -0.5, 2.0, 0.0, 1.25, -3.0, 0.125, 0.0, 0.0};
+    CHECK_NEAR(history_scale(0.5, dt), pow(dt, 0.5) / tgamma(2.5), 1e-18, "history_scale");
+    for (int iq = 0; iq < 3; iq++) {
+        double q = qs[iq], worst = 0;
+        stf_history h;
+        CHECK(history_init(&h, q, 0, np) == 0, "history_init q=%g", q);
+        double scale = history_scale(q, dt);
+        for (long n = 0; n <= 2000; n++) {
+            CHECK(history_push(&h, v, np) == 0, "push %ld", n);
+            history_derivative(&h, np);
+            if (n == 0) {
+                /* one sample: a_{0,0} = 1 */
+                for (int c = 0; c < 3 * np; c++) CHECK_NEAR(h.D[c], v[c], 0.0, "D after 1 sample");
+                continue;
+            }
+            double t = (double)n * dt;
+            for (int c = 0; c < 3 * np; c++) {
+                double want = caputo_linear(q, v[c], t), got = scale * h.D[c];
+                double rel = want != 0 ? fabs(got - want) / fabs(want) : fabs(got);
+                if (rel > worst) worst = rel;
+                CHECK(rel <= 1e-12, "library q=%g n=%ld comp %d: %.17g vs Caputo %.17g (rel %.3g)",
+                      q, n, c, got, want, rel);
+            }
+        }
+        printf("library full history, q=%.1f: worst relative error %.3g over 2000 steps\n", q,
+               worst);
+        history_free(&h);
+    }
+}
+
+/* A linear ramp v = a t is also integrated exactly (second order scheme, exact for
+ * piecewise-linear v): D^q x for x = a t^2/2 is a t^(2-q)/Gamma(3-q). */
+static void test_linear_velocity_library(void)
+{
+    const double dt = 1.0 / 1024; /* so that v = n dt is exact in float32 */
+    for (int iq = 0; iq < 3; iq++) {
+        double q = qs[iq], worst = 0;
+        stf_history h;
+        CHECK(history_init(&h, q, 0, 1) == 0, "init");
+        for (long n = 0; n <= 1000; n++) {
+            double vv[3] = {(double)n * dt, 0, 0};
+            history_push(&h, vv, 1);
+            history_derivative(&h, 1);
+            if (n < 1) continue;
+            double t = (double)n * dt;
+            double got = history_scale(q, dt) * h.D[0], want = pow(t, 2.0 - q) / tgamma(3.0 - q);
+            double rel = fabs(got - want) / want;
+            if (rel > worst) worst = rel;
+            CHECK(rel <= 1e-11, "ramp q=%g n=%ld: %.17g vs %.17g (rel %.3g)", q, n, got, want, rel);
+        }
+        printf("library ramp, q=%.1f: worst relative error %.3g\n", q, worst);
+        history_free(&h);
+    }
+}
+
+static void test_window(void)
+{
+    static const int ds[] = {1, 5, 150};
+    const double v[3] = {0.75, -0.5, 2.0};
+    for (int iq = 0; iq < 3; iq++) {
+        double q = qs[iq];
+        for (size_t id = 0; id < sizeof ds / sizeof ds[0]; id++) {
+            int d = ds[id];
+            stf_history hw, hf;
+            CHECK(history_init(&hw, q, d, 1) == 0, "init window");
+            CHECK(history_init(&hf, q, 0, 1) == 0, "init full");
+            double truncated = 0; /* sum_{k=0..d} w_k, interior weights by lag */
+            for (int k = 0; k <= d; k++) truncated += k == 0 ? 1.0 : stf_history_weight(q, 1, k + 1);
+            double closed = pow(d + 1.0, 2.0 - q) - pow((double)d, 2.0 - q);
+            CHECK(fabs(truncated - closed) <= 1e-11 * closed,
+                  "q=%g d=%d: truncated weight sum %.17g vs (d+1)^(2-q)-d^(2-q) = %.17g", q, d,
+                  truncated, closed);
+            int total = 3 * d + 20;
+            for (int s = 1; s <= total; s++) {
+                history_push(&hw, v, 1);
+                history_push(&hf, v, 1);
+                history_derivative(&hw, 1);
+                history_derivative(&hf, 1);
+                long n = s - 1; /* index of the newest sample */
+                if (s <= d + 1) {
+                    /* The window holds everything so far: exactly the full history. */
+                    for (int c = 0; c < 3; c++)
+                        CHECK(fabs(hw.D[c] - hf.D[c]) <= 1e-12 * fabs(hf.D[c]),
+                              "q=%g d=%d n=%ld: window %.17g vs full %.17g before it fills", q, d,
+                              n, hw.D[c], hf.D[c]);
+                } else {
+                    for (int c = 0; c < 3; c++) {
+                        double want = v[c] * truncated;
+                        CHECK(fabs(hw.D[c] - want) <= 1e-12 * fabs(want),
+                              "q=%g d=%d n=%ld: window D %.17g vs v*sum w_k %.17g", q, d, n,
+                              hw.D[c], want);
+                        /* bounded: below the full history's (2-q) n^(1-q) v */
+                        CHECK(fabs(hw.D[c]) < fabs(hf.D[c]),
+                              "q=%g d=%d n=%ld: window |D| %.17g not below full |D| %.17g", q, d,
+                              n, hw.D[c], hf.D[c]);
+                    }
+                }
+            }
+            /* full history keeps growing like n^(1-q): check it against the closed form */
+            double full_sum = (2.0 - q) * pow((double)(total - 1), 1.0 - q);
+            CHECK(fabs(hf.D[0] - v[0] * full_sum) <= 1e-12 * full_sum * v[0],
+                  "full sum %.17g vs (2-q) n^(1-q) v = %.17g", hf.D[0], v[0] * full_sum);
+            history_free(&hw);
+            history_free(&hf);
+        }
+    }
+}
+
+int main(void)
+{
+    /* A handful of particles: one thread (spinning OpenMP threads only slow the thousands of
+       tiny parallel loops down on a busy machine; results do not depend on it). */
+    stf_set_threads(1);
+    test_weights();
+    test_constant_velocity_direct();
+    test_constant_velocity_library();
+    test_linear_velocity_library();
+    test_window();
+    return test_result("test_history");
+}
