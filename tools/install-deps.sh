@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# Installs the Debian packages stf needs that are not installed yet (run as root or via sudo).
+set -euo pipefail
+pkgs=(cmake make gcc pkg-config libode-dev libccd-dev libhdf5-dev libfyaml-dev libpng-dev
+      hdf5-tools python3 python3-h5py python3-numpy)
+missing=()
+for p in "${pkgs[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+[ ${#missing[@]} -eq 0 ] && exit 0
+echo "installing: ${missing[*]}" >&2
+export DEBIAN_FRONTEND=noninteractive
+apt-get install -y --no-install-recommends "${missing[@]}" ||
+  { apt-get update && apt-get install -y --no-install-recommends "${missing[@]}"; }
