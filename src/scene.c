@@ -437,7 +437,7 @@ static int parse_blocks(loader *L, const mapv *fluid)
 
 static int parse_fluid(loader *L, const mapv *top)
 {
-    static const char *const keys[] = {"model", "spacing", "density", "h", "blocks", NULL};
+    static const char *const keys[] = {"model", "spacing", "density", "h", "jitter", "blocks", NULL};
     static const char *const models[] = {"clavet_stf", NULL};
     stf_fluid_def *f = &L->s->fluid;
     struct fy_node *k, *v = lookup(top, "fluid", &k);
@@ -452,6 +452,8 @@ static int parse_fluid(loader *L, const mapv *top)
     if (get_num(L, &m, "h", R_NONNEG, &f->h) < 0) return SCENE_BAD;
     if (f->h > 0 && (f->h < f->spacing || f->h > 5 * f->spacing))
         return fail_value(L, &m, "h", "must be 0 (= 2*spacing) or in [spacing, 5*spacing]");
+    if (get_num(L, &m, "jitter", R_NONNEG, &f->jitter) < 0) return SCENE_BAD;
+    if (f->jitter > 0.45) return fail_value(L, &m, "jitter", "must be in [0, 0.45]");
     return parse_blocks(L, &m);
 }
 
