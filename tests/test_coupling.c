@@ -1,0 +1,213 @@
+/* test_coupling.c - two-way coupling with ODE: momentum, Archimedes, a body at rest. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "stf_ode.h"
+#include "test_util.h"
+
+static stf_fluid *make_fluid(unsigned effects, double spacing)
+{
+    stf_fluid_def d = stf_default_fluid_def();
+    d.effects = effects;
+    d.spacing = spacing;
+    char err[256];
+    stf_fluid *f;
+    if (stf_fluid_create(&d, &f, err, sizeof err) != 0) {
+        fprintf(stderr, "%s\n", err);
+        exit(1);
+    }
+    return f;
+}
+
+static void fluid_momentum(const stf_fluid *f, double p[3])
+{
+    int n = stf_fluid_count(f);
+    double *v = malloc((size_t)n * 3 * sizeof *v);
+    stf_fluid_get_velocities(f, v);
+    p[0] = p[1] = p[2] = 0;
+    for (int i = 0; i < n; i++)
+        for (int a = 0; a < 3; a++) p[a] += stf_fluid_particle_mass(f) * v[3 * i + a];
+    free(v);
+}
+
+static dBodyID make_sphere(dWorldID w, dSpaceID s, double r, double mass, const double pos[3])
+{
+    dBodyID b = dBodyCreate(w);
+    dMass m;
+    dMassSetSphereTotal(&m, mass, r);
+    dBodySetMass(b, &m);
+    dBodySetPosition(b, pos[0], pos[1], pos[2]);
+    dGeomSetBody(dCreateSphere(s, r), b);
+    return b;
+}
+
+/* Gravity off, no walls: a ball shot into a blob. Whatever the fluid takes, the ball gives. */
+static void test_momentum(void)
+{
+    dWorldID w = dWorldCreate();
+    dSpaceID s = dHashSpaceCreate(0);
+    dWorldSetGravity(w, 0, 0, 0);
+    stf_fluid *f = make_fluid(STF_EFFECT_VISCOSITY | STF_EFFECT_PRESSURE | STF_EFFECT_SPRINGS |
+                                  STF_EFFECT_HISTORY,
+                              0.01);
+    stf_fluid_add_block(f, (double[3]){-0.05, -0.05, -0.05}, (double[3]){0.05, 0.05, 0.05},
+                        (double[3]){0, 0, 0});
+    dBodyID ball = make_sphere(w, s, 0.02, 0.3, (double[3]){-0.09, 0.004, 0.002});
+    dBodySetLinearVel(ball, 2.0, 0, 0);
+    stf_ode *c = stf_ode_create(w, s, f);
+    char err[256];
+    CHECK(stf_ode_attach_body(c, ball, NULL, err, sizeof err) == 0, "%s", err);
+    double p0[3], p1[3];
+    fluid_momentum(f, p0);
+    const dReal *v = dBodyGetLinearVel(ball);
+    for (int a = 0; a < 3; a++) p0[a] += 0.3 * v[a];
+    double scale = 0.3 * 2.0, moved = 0;
+    for (int k = 0; k < 150; k++) CHECK(stf_ode_step(c, 0.001) == 0, "step %d failed", k);
+    fluid_momentum(f, p1);
+    v = dBodyGetLinearVel(ball);
+    moved = fabs(0.3 * v[0] - 0.3 * 2.0);
+    for (int a = 0; a < 3; a++) p1[a] += 0.3 * v[a];
+    double err3 = sqrt((p1[0] - p0[0]) * (p1[0] - p0[0]) + (p1[1] - p0[1]) * (p1[1] - p0[1]) +
+                       (p1[2] - p0[2]) * (p1[2] - p0[2]));
+    printf("momentum: ball gave %.4g N s of %.3g; total changed by %.3g N s\n", moved, scale, err3);
+    CHECK(moved > 0.05 * scale, "the ball hardly touched the fluid (%g N s)", moved);
+    CHECK(err3 < 1e-12 * scale, "total momentum changed by %g N s", err3);
+    stf_ode_destroy(c);
+    stf_fluid_destroy(f);
+    dSpaceDestroy(s);
+    dWorldDestroy(w);
+}
+
+typedef struct pool {
+    dWorldID w;
+    dSpaceID s;
+    stf_fluid *f;
+    stf_ode *c;
+} pool;
+
+/* A pool of plain fluid (no springs) in a fixed container with a floor geom for ODE. */
+static pool make_pool(double spacing, double L, double depth)
+{
+    pool p;
+    p.w = dWorldCreate();
+    p.s = dHashSpaceCreate(0);
+    dWorldSetGravity(p.w, 0, 0, -9.81);
+    p.f = make_fluid(STF_EFFECT_GRAVITY | STF_EFFECT_VISCOSITY | STF_EFFECT_PRESSURE, spacing);
+    stf_fluid_add_block(p.f, (double[3]){-L / 2, -L / 2, 0}, (double[3]){L / 2, L / 2, depth},
+                        (double[3]){0, 0, 0});
+    dGeomID floor_geom = dCreateBox(p.s, L + 0.1, L + 0.1, 0.05);
+    dGeomSetPosition(floor_geom, 0, 0, -0.025);
+    p.c = stf_ode_create(p.w, p.s, p.f);
+    char err[256];
+    CHECK(stf_ode_attach_container(p.c, 0, (double[3]){0, 0, 0}, (double[3]){L, L, 3 * depth},
+                                   0.02, NULL, err, sizeof err) == 0, "%s", err);
+    return p;
+}
+
+static void free_pool(pool *p)
+{
+    stf_ode_destroy(p->c);
+    stf_fluid_destroy(p->f);
+    dSpaceDestroy(p->s);
+    dWorldDestroy(p->w);
+}
+
+/* Mean height of the top particles in a ring away from the body: the free surface. */
+static double surface_level(const stf_fluid *f, double spacing, double rmin)
+{
+    int n = stf_fluid_count(f);
+    double *x = malloc((size_t)n * 3 * sizeof *x);
+    stf_fluid_get_positions(f, x);
+    enum { G = 64 };
+    double top[G][G];
+    for (int a = 0; a < G; a++)
+        for (int b = 0; b < G; b++) top[a][b] = -1;
+    for (int i = 0; i < n; i++) {
+        if (hypot(x[3 * i], x[3 * i + 1]) < rmin) continue;
+        int a = (int)floor(x[3 * i] / spacing) + G / 2, b = (int)floor(x[3 * i + 1] / spacing) + G / 2;
+        if (a >= 0 && a < G && b >= 0 && b < G && x[3 * i + 2] > top[a][b]) top[a][b] = x[3 * i + 2];
+    }
+    double sum = 0;
+    int cnt = 0;
+    for (int a = 0; a < G; a++)
+        for (int b = 0; b < G; b++)
+            if (top[a][b] >= 0) sum += top[a][b], cnt++;
+    free(x);
+    return sum / cnt + 0.5 * spacing; /* particle centres sit half a spacing below the surface */
+}
+
+/* A box of half the fluid's density floats with half its height below the surface. */
+static void test_archimedes(void)
+{
+    const double spacing = 0.0125, L = 0.25, depth = 0.1, H = 0.06, side = 0.12;
+    const double rho_f = stf_default_fluid_def().density, rho_b = 0.5 * rho_f;
+    pool p = make_pool(spacing, L, depth);
+    dBodyID box = dBodyCreate(p.w);
+    dMass m;
+    dMassSetBoxTotal(&m, rho_b * side * side * H, side, side, H);
+    dBodySetMass(box, &m);
+    dBodySetPosition(box, 0, 0, depth + H / 2 + 0.005);
+    dGeomSetBody(dCreateBox(p.s, side, side, H), box);
+    char err[256];
+    CHECK(stf_ode_attach_body(p.c, box, NULL, err, sizeof err) == 0, "%s", err);
+    stf_ode_remove_overlaps(p.c);
+    double zsum = 0;
+    int zn = 0;
+    for (int k = 0; k < 1500; k++) {
+        CHECK(stf_ode_step(p.c, 0.001) == 0, "step %d: %s", k, stf_fluid_failure(p.f));
+        if (k >= 1000) zsum += dBodyGetPosition(box)[2], zn++; /* mean over the last 0.5 s */
+    }
+    double level = surface_level(p.f, spacing, 0.11);
+    double draft = level - (zsum / zn - H / 2), want = rho_b / rho_f * H;
+    printf("archimedes: surface %.4f m, draft %.4f m, Archimedes %.4f m (error %.1f%% of the "
+           "height, %.2f spacings)\n", level, draft, want, 100 * (draft - want) / H,
+           (draft - want) / spacing);
+    /* Tolerance: one particle spacing (20% of this box's height). Measured: the box floats
+       0.71 spacings high (0.55 in a wider pool). Two causes, both of resolution: the pool is about 6% denser than
+       rest at this depth (k = 1000 m/s^2 is a compressible fluid), and the wetted face sits
+       where the first particle layer is held, about half a spacing from the solid. */
+    CHECK(fabs(draft - want) < spacing, "draft %g m, Archimedes gives %g m", draft, want);
+    free_pool(&p);
+}
+
+/* A steel sphere on the container floor under the fluid stays where it is. */
+static void test_resting_sphere(void)
+{
+    const double spacing = 0.0125, r = 0.03;
+    pool p = make_pool(spacing, 0.15, 0.08);
+    dBodyID ball = make_sphere(p.w, p.s, r, 7800 * 4.0 / 3.0 * M_PI * r * r * r,
+                               (double[3]){0.01, -0.005, r});
+    char err[256];
+    CHECK(stf_ode_attach_body(p.c, ball, NULL, err, sizeof err) == 0, "%s", err);
+    stf_ode_remove_overlaps(p.c);
+    double start[3], vmax_early = 0, vmax_late = 0;
+    for (int k = 0; k < 2000; k++) {
+        CHECK(stf_ode_step(p.c, 0.001) == 0, "step %d: %s", k, stf_fluid_failure(p.f));
+        if (k == 199) memcpy(start, dBodyGetPosition(ball), sizeof start);
+        const dReal *v = dBodyGetLinearVel(ball);
+        double sp = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+        if (k >= 200 && k < 1100) vmax_early = fmax(vmax_early, sp);
+        if (k >= 1100) vmax_late = fmax(vmax_late, sp);
+    }
+    const dReal *e = dBodyGetPosition(ball);
+    double drift = sqrt((e[0] - start[0]) * (e[0] - start[0]) + (e[1] - start[1]) * (e[1] - start[1]) +
+                        (e[2] - start[2]) * (e[2] - start[2]));
+    printf("resting sphere: drift %.3g m over 1.8 s, max speed %.3g m/s then %.3g m/s\n", drift,
+           vmax_early, vmax_late);
+    /* measured 1.3 mm (0.1 spacing) as it beds into the floor contact, with speeds falling */
+    CHECK(drift < 0.25 * spacing, "the sphere drifted %g m", drift);
+    CHECK(vmax_late <= fmax(vmax_early, 1e-3), "jitter grows: %g m/s after %g m/s", vmax_late,
+          vmax_early);
+    free_pool(&p);
+}
+
+int main(void)
+{
+    dInitODE2(0);
+    test_momentum();
+    test_archimedes();
+    test_resting_sphere();
+    dCloseODE();
+    return test_result("test_coupling");
+}
