@@ -156,11 +156,15 @@ static double sdf_convex(const collider *c, const double x[3], double n[3])
     ccd.support2 = support_point;
     ccd.center1 = center_hull;
     ccd.center2 = center_point;
-    ccd.mpr_tolerance = 1e-9;
+    ccd.epa_tolerance = 1e-9;
+    ccd.max_iterations = 100;
     hull_obj h = {c};
     ccd_real_t depth;
     ccd_vec3_t dir, pos;
-    if (ccdMPRPenetration(&h, x, &ccd, &depth, &dir, &pos) != 0) {
+    /* GJK + EPA, not MPR: MPR measures the depth along the line from the hull's centre to the
+       point, which overestimates it away from the face normals (by up to 11 cm for a
+       40 x 20 x 10 cm box, tested); EPA finds the shortest way out. */
+    if (ccdGJKPenetration(&h, x, &ccd, &depth, &dir, &pos) != 0) {
         n[0] = n[1] = 0, n[2] = 1; /* no contact: only contacts matter here */
         return 1e30;
     }

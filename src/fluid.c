@@ -103,7 +103,8 @@ static int check_def(const stf_fluid_def *d, char *err, size_t errlen)
  * the defaults). Choosing rho0 = rho_lat + (k_near/k) * rho_near_lat * S2/S1, with S1, S2 the
  * sums of (1-q) and (1-q)^2 weighted by |cos| to the neighbours, cancels the two pressures
  * along any lattice axis, so a block starts at rest at its physical density. */
-static double lattice_rest_density(double spacing, double h, double k, double k_near)
+static double lattice_rest_density(double spacing, double h, double k, double k_near,
+                                   double *rest_near)
 {
     int m = (int)ceil(h / spacing);
     double rho = 0, rho_near = 0, s1 = 0, s2 = 0;
@@ -118,6 +119,7 @@ static double lattice_rest_density(double spacing, double h, double k, double k_
                 s1 += w * cosz;
                 s2 += w * w * cosz;
             }
+    *rest_near = rho_near;
     return k > 0 ? rho + (k_near / k) * rho_near * s2 / s1 : rho;
 }
 
@@ -130,9 +132,13 @@ int stf_fluid_create(const stf_fluid_def *def, stf_fluid **out, char *err, size_
     f->def = *def;
     f->h = def->h > 0 ? def->h : 2.0 * def->spacing;
     f->mass = def->density * def->spacing * def->spacing * def->spacing;
-    f->rest_density = def->rest_density > 0
-                          ? def->rest_density
-                          : lattice_rest_density(def->spacing, f->h, def->k, def->k_near);
+    /* With tension the rest density balances near-pressure on the lattice (see above);
+       without, both pressures start from zero on the lattice. */
+    double rest_near;
+    f->rest_density = lattice_rest_density(def->spacing, f->h, def->tension ? def->k : 0,
+                                           def->k_near, &rest_near);
+    f->rest_near = def->tension ? 0 : rest_near;
+    if (def->rest_density > 0) f->rest_density = def->rest_density;
     f->reorder_interval = 16;
     pressure_wall_table(f);
     *out = f;

@@ -28,6 +28,7 @@ struct stf_fluid {
     double h;            /* interaction radius, m */
     double mass;         /* particle mass, kg */
     double rest_density; /* kernel rest density used (def's, or the lattice's) */
+    double rest_near;    /* near density below which near-pressure is 0 (no tension) */
 
     int n, cap;
     double *x, *v, *xprev; /* 3n, interleaved */

@@ -80,8 +80,14 @@ static void density_one(stf_fluid *f, int i)
         rho_near += w[W_RHO_NEAR];
     }
     /* Store pressures, not densities: both halves of a pair need them. */
-    f->rho[i] = f->def.k * (rho - f->rest_density);
-    f->rho_near[i] = f->def.k_near * rho_near;
+    double P = f->def.k * (rho - f->rest_density);
+    double Pn = f->def.k_near * (rho_near - f->rest_near);
+    if (!f->def.tension) { /* no pull below rest: a free surface is not a stretched skin */
+        P = P > 0 ? P : 0;
+        Pn = Pn > 0 ? Pn : 0;
+    }
+    f->rho[i] = P;
+    f->rho_near[i] = Pn;
 }
 
 static void relax_one(stf_fluid *f, int i, double dt)

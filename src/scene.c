@@ -490,6 +490,7 @@ static int parse_effect_params(loader *L, int e, const mapv *p)
     case 2:
         if (get_num(L, p, "k", R_POS, &f->k) < 0) return SCENE_BAD;
         if (get_num(L, p, "k_near", R_NONNEG, &f->k_near) < 0) return SCENE_BAD;
+        if (get_bool(L, p, "tension", &f->tension) < 0) return SCENE_BAD;
         return get_num(L, p, "rest_density", R_NONNEG, &f->rest_density) < 0 ? SCENE_BAD : 0;
     case 3:
         if (get_num(L, p, "k_min", R_NONNEG, &f->k_min) < 0) return SCENE_BAD;
@@ -504,7 +505,7 @@ static int parse_effect_params(loader *L, int e, const mapv *p)
 
 static const char *const gravity_keys[] = {"g", NULL};
 static const char *const viscosity_keys[] = {"sigma", "beta", NULL};
-static const char *const pressure_keys[] = {"k", "k_near", "rest_density", NULL};
+static const char *const pressure_keys[] = {"k", "k_near", "rest_density", "tension", NULL};
 static const char *const springs_keys[] = {"k_min", "yield_ratio", "plasticity", NULL};
 static const char *const history_keys[] = {"q", "d", "memory", "k_hist", "mode", NULL};
 static const char *const stick_keys[] = {"stick", NULL};

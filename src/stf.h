@@ -60,6 +60,9 @@ typedef struct stf_fluid_def {
     double k_near;         /* near-pressure stiffness, m/s^2 (>= 0) */
     double rest_density;   /* rest kernel density (sum of (1-r/h)^2), dimensionless;
                               0 means the value of the initial cubic lattice */
+    int tension;           /* 1: Clavet's pressure as written, negative below rest density
+                              (cohesion, surface tension); 0: pressure and near-pressure only
+                              push, both measured from the rest lattice (no tension) */
     /* springs (Clavet Alg. 3-4) */
     double k_min;          /* spring stiffness, 1/s^2 (>= 0) */
     double yield_ratio;    /* tolerated deformation / rest length, dimensionless (>= 0) */
@@ -86,7 +89,7 @@ enum stf_shape {
     STF_SHAPE_CAPSULE = 3,   /* radius, half length along local z */
     STF_SHAPE_CYLINDER = 4,  /* radius, half length along local z */
     STF_SHAPE_CONTAINER = 5, /* open-top box: inner half extents; the inside is free */
-    STF_SHAPE_CONVEX = 6,    /* convex hull of points (libccd MPR) */
+    STF_SHAPE_CONVEX = 6,    /* convex hull of points (libccd GJK + EPA) */
 };
 
 typedef struct stf_collider_def {

@@ -1,0 +1,164 @@
+/* test_colliders.c - signed distances of every collider shape against their exact values,
+ * the libccd (GJK + EPA) convex hull against the analytic box, and removal of overlapping
+ * particles at set-up. */
+#include <math.h>
+#include <stdlib.h>
+
+#include "stf.h"
+#include "test_util.h"
+
+static stf_fluid *fluid(void)
+{
+    stf_fluid_def d = stf_default_fluid_def();
+    d.jitter = 0; /* a lattice at rest: any motion comes from the body */
+    d.effects = STF_EFFECT_PRESSURE;
+    d.spacing = 0.01;
+    char err[256];
+    stf_fluid *f;
+    if (stf_fluid_create(&d, &f, err, sizeof err)) exit(1);
+    return f;
+}
+
+static int add(stf_fluid *f, stf_collider_def c)
+{
+    char err[256];
+    int id = stf_fluid_add_collider(f, &c, err, sizeof err);
+    CHECK(id >= 0, "%s", err);
+    return id;
+}
+
+/* A rotation by angle a about z, row-major. */
+static void rot_z(double a, double R[9])
+{
+    double c = cos(a), s = sin(a);
+    double r[9] = {c, -s, 0, s, c, 0, 0, 0, 1};
+    for (int k = 0; k < 9; k++) R[k] = r[k];
+}
+
+static void test_shapes(void)
+{
+    stf_fluid *f = fluid();
+    stf_collider_def c = stf_default_collider_def();
+    double R[9], v0[3] = {0, 0, 0};
+    rot_z(0.3, R);
+
+    c.shape = STF_SHAPE_SPHERE, c.radius = 0.1;
+    int sphere = add(f, c);
+    stf_fluid_set_collider_state(f, sphere, (double[3]){1, 2, 3}, R, v0, v0);
+    CHECK_NEAR(stf_fluid_collider_distance(f, sphere, (double[3]){1.3, 2, 3}), 0.2, 1e-12, "sphere outside");
+    CHECK_NEAR(stf_fluid_collider_distance(f, sphere, (double[3]){1, 2, 3.05}), -0.05, 1e-12, "sphere inside");
+
+    c.shape = STF_SHAPE_BOX, c.half[0] = 0.2, c.half[1] = 0.1, c.half[2] = 0.05;
+    int box = add(f, c);
+    stf_fluid_set_collider_state(f, box, (double[3]){0, 0, 0}, R, v0, v0);
+    /* a point on the rotated local x axis, 0.1 beyond the face */
+    double px[3] = {0.3 * cos(0.3), 0.3 * sin(0.3), 0};
+    CHECK_NEAR(stf_fluid_collider_distance(f, box, px), 0.1, 1e-12, "box face");
+    CHECK_NEAR(stf_fluid_collider_distance(f, box, (double[3]){0, 0, 0.01}), -0.04, 1e-12, "box inside");
+    double corner[3] = {0.2 * cos(0.3) - 0.1 * sin(0.3), 0.2 * sin(0.3) + 0.1 * cos(0.3), 0.05 + 0.03};
+    CHECK_NEAR(stf_fluid_collider_distance(f, box, corner), 0.03, 1e-12, "box edge");
+
+    c.shape = STF_SHAPE_CAPSULE, c.radius = 0.05, c.half_length = 0.1;
+    int cap = add(f, c);
+    stf_fluid_set_collider_state(f, cap, (double[3]){0, 0, 0}, NULL, v0, v0);
+    CHECK_NEAR(stf_fluid_collider_distance(f, cap, (double[3]){0, 0, 0.2}), 0.05, 1e-12, "capsule tip");
+    CHECK_NEAR(stf_fluid_collider_distance(f, cap, (double[3]){0.02, 0, 0.05}), -0.03, 1e-12, "capsule side");
+
+    c.shape = STF_SHAPE_CYLINDER;
+    int cyl = add(f, c);
+    stf_fluid_set_collider_state(f, cyl, (double[3]){0, 0, 0}, NULL, v0, v0);
+    CHECK_NEAR(stf_fluid_collider_distance(f, cyl, (double[3]){0, 0, 0.13}), 0.03, 1e-12, "cylinder cap");
+    CHECK_NEAR(stf_fluid_collider_distance(f, cyl, (double[3]){0.08, 0.0, 0.13}), sqrt(0.03 * 0.03 * 2), 1e-12, "cylinder rim");
+
+    c.shape = STF_SHAPE_PLANE, c.normal[0] = 0, c.normal[1] = 0, c.normal[2] = 2, c.offset = 0.1;
+    int plane = add(f, c);
+    CHECK_NEAR(stf_fluid_collider_distance(f, plane, (double[3]){5, 5, 0.25}), 0.15, 1e-12, "plane");
+
+    c.shape = STF_SHAPE_CONTAINER, c.half[0] = 0.2, c.half[1] = 0.1, c.half[2] = 0.15, c.wall = 0.02;
+    int box_in = add(f, c);
+    CHECK_NEAR(stf_fluid_collider_distance(f, box_in, (double[3]){0.15, 0, 0.1}), 0.05, 1e-12, "container wall");
+    CHECK_NEAR(stf_fluid_collider_distance(f, box_in, (double[3]){0, 0, 0.02}), 0.02, 1e-12, "container floor");
+    CHECK_NEAR(stf_fluid_collider_distance(f, box_in, (double[3]){0.21, 0, 0.1}), -0.01, 1e-12, "in the wall");
+    CHECK(stf_fluid_collider_distance(f, box_in, (double[3]){0.5, 0, 0.1}) > 0.1, "outside is free");
+    stf_fluid_destroy(f);
+}
+
+/* The convex hull of a box's corners (libccd GJK+EPA) gives the box's penetration depth. */
+static void test_convex(void)
+{
+    stf_fluid *f = fluid();
+    const double hx = 0.2, hy = 0.1, hz = 0.05;
+    double pts[24];
+    for (int k = 0; k < 8; k++) {
+        pts[3 * k] = (k & 1) ? hx : -hx;
+        pts[3 * k + 1] = (k & 2) ? hy : -hy;
+        pts[3 * k + 2] = (k & 4) ? hz : -hz;
+    }
+    stf_collider_def c = stf_default_collider_def();
+    c.shape = STF_SHAPE_CONVEX, c.points = pts, c.npoints = 8;
+    int hull = add(f, c);
+    c.shape = STF_SHAPE_BOX, c.points = NULL, c.npoints = 0, c.half[0] = hx, c.half[1] = hy, c.half[2] = hz;
+    int box = add(f, c);
+    double R[9], v0[3] = {0, 0, 0}, pos[3] = {0.3, -0.2, 0.1};
+    rot_z(0.7, R);
+    stf_fluid_set_collider_state(f, hull, pos, R, v0, v0);
+    stf_fluid_set_collider_state(f, box, pos, R, v0, v0);
+    double worst = 0;
+    unsigned s = 7;
+    for (int k = 0; k < 200; k++) {
+        double x[3];
+        for (int a = 0; a < 3; a++) {
+            s = s * 1664525u + 1013904223u;
+            x[a] = pos[a] + 0.18 * ((s >> 8) / 16777216.0 - 0.5);
+        }
+        double db = stf_fluid_collider_distance(f, box, x);
+        if (db >= 0) continue; /* only penetration is reported */
+        double dh = stf_fluid_collider_distance(f, hull, x);
+        worst = fmax(worst, fabs(dh - db));
+    }
+    printf("convex vs box: worst depth difference %.3g m\n", worst);
+    CHECK(worst < 1e-6, "EPA depth differs from the box by %g m", worst);
+    stf_fluid_destroy(f);
+}
+
+/* Particles that start inside a body are removed, and only those. */
+static void test_remove_inside(void)
+{
+    stf_fluid *f = fluid();
+    stf_fluid_add_block(f, (double[3]){-0.1, -0.1, -0.1}, (double[3]){0.1, 0.1, 0.1}, (double[3]){0, 0, 0});
+    int n0 = stf_fluid_count(f);
+    stf_collider_def c = stf_default_collider_def();
+    c.shape = STF_SHAPE_SPHERE, c.radius = 0.05;
+    int ball = add(f, c);
+    stf_fluid_set_collider_state(f, ball, (double[3]){0, 0, 0}, NULL, NULL, NULL);
+    int removed = stf_fluid_remove_inside(f, ball);
+    int n = stf_fluid_count(f);
+    double *x = malloc((size_t)n * 3 * sizeof *x);
+    stf_fluid_get_positions(f, x);
+    int inside = 0;
+    for (int i = 0; i < n; i++) inside += stf_fluid_collider_distance(f, ball, x + 3 * i) < 0.005;
+    /* the sphere's volume grown by half a spacing, in particles of 1 cm^3: about 697 */
+    double expect = 4.0 / 3.0 * 3.14159265358979323846 * pow(0.055, 3) / 1e-6;
+    printf("remove_inside: %d of %d removed (sphere + margin holds %.0f)\n", removed, n0, expect);
+    CHECK(removed == n0 - n, "count mismatch");
+    CHECK(inside == 0, "%d particles left inside the body", inside);
+    CHECK(fabs(removed - expect) < 0.1 * expect, "removed %d, expected about %.0f", removed, expect);
+    for (int k = 0; k < 20; k++) stf_fluid_step(f, 1e-3);
+    stf_fluid_get_positions(f, x);
+    double vmax = 0, *v = malloc((size_t)n * 3 * sizeof *v);
+    stf_fluid_get_velocities(f, v);
+    for (int i = 0; i < n; i++) vmax = fmax(vmax, sqrt(v[3 * i] * v[3 * i] + v[3 * i + 1] * v[3 * i + 1] + v[3 * i + 2] * v[3 * i + 2]));
+    printf("remove_inside: max speed after 20 steps %.3g m/s\n", vmax);
+    CHECK(vmax < 0.5, "the fluid around the body exploded: %g m/s", vmax);
+    free(x);
+    free(v);
+    stf_fluid_destroy(f);
+}
+
+int main(void)
+{
+    test_shapes();
+    test_convex();
+    test_remove_inside();
+    return test_result("test_colliders");
+}
