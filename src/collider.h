@@ -1,4 +1,4 @@
-/* collider.h - solids the particles collide with: analytic signed distances, libccd (MPR)
+/* collider.h - solids the particles collide with: analytic signed distances, libccd (GJK + EPA)
  * for convex hulls. Each collider sums the impulses it gives the fluid, so ode_glue can hand
  * the reaction to its rigid body. */
 #ifndef STF_COLLIDER_H
