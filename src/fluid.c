@@ -515,6 +515,33 @@ double stf_fluid_effect_seconds(const stf_fluid *f, unsigned effect)
     }
 }
 
+int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
+{
+    const stf_fluid_def *d = &f->def;
+    static const char *const names[] = {"gravity", "viscosity", "pressure", "springs", "history",
+                                        "boundary_stick"};
+    char effects[128] = "";
+    for (int k = 0; k < 6; k++)
+        if (d->effects & (1u << k)) {
+            strcat(effects, effects[0] ? ", " : "");
+            strcat(effects, names[k]);
+        }
+    return snprintf(
+        buf, len,
+        "effects: [%s]\nspacing: %.9g  # m\nh: %.9g  # m\ndensity: %.9g  # kg/m^3\n"
+        "particle_mass: %.9g  # kg\njitter: %.9g  # spacings\ngravity: [%.9g, %.9g, %.9g]  # m/s^2\n"
+        "sigma: %.9g  # 1/s\nbeta: %.9g  # 1/m\nk: %.9g  # m/s^2\nk_near: %.9g  # m/s^2\n"
+        "tension: %s\nrest_density: %.9g  # kernel sum\nrest_near_density: %.9g  # kernel sum\n"
+        "k_min: %.9g  # 1/s^2\nyield_ratio: %.9g\nplasticity: %.9g  # 1/s\nq: %.9g\n"
+        "history_mode: %s\nhistory_steps: %d\nk_hist: %.9g  # 1/s^2 per m/s^q\n"
+        "stick: %.9g  # 1/s\n",
+        effects, d->spacing, f->h, d->density, f->mass, d->jitter, d->gravity[0], d->gravity[1],
+        d->gravity[2], d->sigma, d->beta, d->k, d->k_near, d->tension ? "true" : "false",
+        f->rest_density, f->rest_near, d->k_min, d->yield_ratio, d->plasticity, d->q,
+        d->history_mode == STF_HISTORY_FULL ? "full" : "window", stf_fluid_history_steps(f),
+        d->k_hist, d->stick);
+}
+
 uint64_t stf_fluid_hash(const stf_fluid *f)
 {
     /* In id order, so the periodic re-sorting of particles does not change the hash. */

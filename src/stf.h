@@ -163,6 +163,10 @@ size_t stf_fluid_effect_bytes(const stf_fluid *f, unsigned effect);
 double stf_fluid_effect_seconds(const stf_fluid *f, unsigned effect);
 /* The effective history window in steps (0 without history). */
 int stf_fluid_history_steps(const stf_fluid *f);
+/* The effective parameters (the def with every default and derived value filled in: h,
+ * particle mass, rest densities, history window), as YAML "key: value  # unit" lines.
+ * Returns the length written (like snprintf). */
+int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len);
 /* FNV-1a hash of positions and velocities, for determinism tests. */
 uint64_t stf_fluid_hash(const stf_fluid *f);
 

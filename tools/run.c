@@ -85,6 +85,9 @@ static int write_header(stf_h5 *h, const stf_sim *sim)
     int rc = stf_h5_attr_string(h, "scene", sc->text ? sc->text : "");
     rc |= stf_h5_attr_string(h, "scene_path", sc->path);
     rc |= stf_h5_attr_string(h, "version", STF_VERSION);
+    char params[4096];
+    stf_fluid_describe(sim->fluid, params, sizeof params);
+    rc |= stf_h5_attr_string(h, "parameters", params);
     rc |= stf_h5_attr_double(h, "spacing", sc->fluid.spacing);
     rc |= stf_h5_attr_double(h, "dt", sc->dt);
     rc |= stf_h5_attr_double(h, "particle_mass", stf_fluid_particle_mass(sim->fluid));
