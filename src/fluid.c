@@ -343,14 +343,20 @@ void fluid_permute(stf_fluid *f, const int32_t *perm)
 
 /* --------------------------------------------------------------------- the step */
 
-static int first_bad(const stf_fluid *f)
+/* A particle is bad when its state is not finite, or when it would cross ten interaction
+ * radii in one step: no stable run does that (the relaxation reaches a few neighbours per
+ * step), so it is a blow-up caught before it turns into NaN. */
+static int first_bad(const stf_fluid *f, double vmax)
 {
     int bad = f->n;
+    double v2max = vmax * vmax;
 #pragma omp parallel for schedule(static) reduction(min : bad)
     for (int i = 0; i < f->n; i++) {
-        const double *x = f->x + 3 * i, *v = f->v + 3 * i;
-        int ok = isfinite(x[0]) && isfinite(x[1]) && isfinite(x[2]) && isfinite(v[0]) &&
-                 isfinite(v[1]) && isfinite(v[2]);
+        const double *x = f->x + 3 * i, *v = f->v + 3 * i, *xp = f->xprev + 3 * i;
+        double v2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+        double d[3] = {x[0] - xp[0], x[1] - xp[1], x[2] - xp[2]};
+        double d2 = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) / (f->dt_now * f->dt_now);
+        int ok = isfinite(x[0]) && isfinite(x[1]) && isfinite(x[2]) && v2 <= v2max && d2 <= v2max;
         if (!ok && i < bad) bad = i;
     }
     return bad < f->n ? bad : -1;
@@ -358,12 +364,21 @@ static int first_bad(const stf_fluid *f)
 
 static int check(stf_fluid *f, const char *effect)
 {
-    int i = first_bad(f);
+    double vmax = 10.0 * f->h / f->dt_now;
+    int i = first_bad(f, vmax);
     if (i < 0) return 0;
+    const double *v = f->v + 3 * i, *x = f->x + 3 * i, *xp = f->xprev + 3 * i;
+    double speed = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) +
+                   sqrt((x[0] - xp[0]) * (x[0] - xp[0]) + (x[1] - xp[1]) * (x[1] - xp[1]) +
+                        (x[2] - xp[2]) * (x[2] - xp[2]));
     snprintf(f->failure, sizeof f->failure,
-             "step %ld (t = %.6g s): particle %d (id %d) has a non-finite position or velocity "
-             "after effect '%s'",
-             f->steps + 1, f->time, i, f->id[i], effect);
+             "step %ld (t = %.6g s): particle %d (id %d) %s after effect '%s'", f->steps + 1,
+             f->time, i, f->id[i],
+             isfinite(speed) && isfinite(f->x[3 * i]) && isfinite(f->x[3 * i + 1]) &&
+                     isfinite(f->x[3 * i + 2])
+                 ? "blew up (moves more than 10 h in a step)"
+                 : "has a non-finite position or velocity",
+             effect);
     return -1;
 }
 
