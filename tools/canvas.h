@@ -55,7 +55,7 @@ void canvas_sphere(canvas *c, double cx, double cy, double r, double z, double r
 void canvas_triangle(canvas *c, const double p0[3], const double p1[3], const double p2[3],
                      const float rgb[3]);
 
-/* Text in the built-in 5x7 font (digits, letters, . - + : / = , ( ) _ % space; others show
+/* Text in the built-in 5x7 font (digits, letters, . - + : / = , ( ) _ % ' space; others show
  * as '?'), each font pixel a scale x scale block; (x, y) is the top left. */
 void canvas_text(canvas *c, int x, int y, const char *s, const float rgb[3], int scale);
 /* Same with a 1-pixel-per-scale outline in the halo colour (legible on any background). */

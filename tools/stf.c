@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "cli.h"
+#include "pictures.h"
 
 static void usage(FILE *to)
 {
@@ -19,6 +20,9 @@ static void usage(FILE *to)
           "              [--threads N] [--quiet]\n"
           "  stf check SCENE [-o OUT.h5] [--set ...] [--unset ...] [--duration S] [--threads N]\n"
           "  stf report OUT.h5 [--json]\n"
+          "  stf render OUT.h5 [-o DIR] [--frames all|N|A:B|a,b,c] [--every K] [--color speed|khist|none]\n"
+          "             [--width W] [--height H] [--camera x,y,z] [--look x,y,z] [--montage FILE.png]\n"
+          "  stf plot OUT.h5 [-o FILE.png] [--body NAME]\n"
           "exit codes: 0 ok, 1 expectation failed, 2 bad input, 3 numerical failure, "
           "130 interrupted\n",
           to);
@@ -34,11 +38,13 @@ int main(int argc, char **argv)
     if (!strcmp(cmd, "run")) return cli_run(argc - 2, argv + 2, 0);
     if (!strcmp(cmd, "check")) return cli_run(argc - 2, argv + 2, 1);
     if (!strcmp(cmd, "report")) return cli_report(argc - 2, argv + 2);
+    if (!strcmp(cmd, "render")) return cli_render(argc - 2, argv + 2);
+    if (!strcmp(cmd, "plot")) return cli_plot(argc - 2, argv + 2);
     if (!strcmp(cmd, "--version")) {
         printf("stf %s\n", STF_VERSION);
         return 0;
     }
-    fprintf(stderr, "stf: unknown command '%s' (allowed: run, check, report)\n", cmd);
+    fprintf(stderr, "stf: unknown command '%s' (allowed: run, check, report, render, plot)\n", cmd);
     usage(stderr);
     return 2;
 }

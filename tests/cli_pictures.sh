@@ -1,0 +1,126 @@
+# cli_pictures.sh - `stf render` and `stf plot` end to end: a small run is rendered to PNG
+# frames and plotted; the PNGs are valid (signature, IHDR size), a frame is not a uniform
+# image, and an unreadable file exits 2.
+#
+# usage: bash cli_pictures.sh STF_BINARY PROJECT_DIR   (run in the build's tests directory)
+set -u
+
+STF=${1:?usage: cli_pictures.sh STF_BINARY PROJECT_DIR}
+PROJ=${2:?usage: cli_pictures.sh STF_BINARY PROJECT_DIR}
+PY=python3
+WORK=$(mktemp -d "${PWD}/cli_pictures.XXXXXX") || { echo "cli_pictures: cannot make a work dir" >&2; exit 1; }
+trap 'rm -rf "$WORK"' EXIT
+cd "$WORK" || exit 1
+
+fails=0
+fail() { echo "cli_pictures: FAIL: $*" >&2; fails=$((fails + 1)); }
+
+# check_png FILE [W H]: a PNG (signature, IHDR), optionally of size W x H, whose pixels are
+# not all the same (IDAT decompressed, filter bytes dropped, more than one distinct value).
+check_png() {
+    "$PY" - "$@" <<'PYEOF'
+import struct, sys, zlib
+path = sys.argv[1]
+data = open(path, "rb").read()
+if data[:8] != b"\x89PNG\r\n\x1a\n":
+    sys.exit(f"{path}: not a PNG signature")
+if data[12:16] != b"IHDR":
+    sys.exit(f"{path}: no IHDR chunk first")
+w, h, depth, ctype = struct.unpack(">IIBB", data[16:26])
+if len(sys.argv) > 3 and (w, h) != (int(sys.argv[2]), int(sys.argv[3])):
+    sys.exit(f"{path}: size {w}x{h}, expected {sys.argv[2]}x{sys.argv[3]}")
+if w < 1 or h < 1 or depth != 8 or ctype != 2:
+    sys.exit(f"{path}: unexpected IHDR {w}x{h} depth {depth} colour type {ctype}")
+pos, idat = 8, b""
+while pos < len(data):
+    n, kind = struct.unpack(">I4s", data[pos:pos + 8])
+    if kind == b"IDAT":
+        idat += data[pos + 8:pos + 8 + n]
+    pos += 12 + n
+raw = zlib.decompress(idat)
+stride = 1 + 3 * w
+if len(raw) != stride * h:
+    sys.exit(f"{path}: image data has {len(raw)} bytes, expected {stride * h}")
+# undo the PNG filters to get the pixel values
+prev, values = bytearray(stride - 1), set()
+for y in range(h):
+    f, line = raw[y * stride], bytearray(raw[y * stride + 1:(y + 1) * stride])
+    for i in range(len(line)):
+        a = line[i - 3] if i >= 3 else 0
+        b = prev[i]
+        c = prev[i - 3] if i >= 3 else 0
+        if f == 1: line[i] = (line[i] + a) & 255
+        elif f == 2: line[i] = (line[i] + b) & 255
+        elif f == 3: line[i] = (line[i] + (a + b) // 2) & 255
+        elif f == 4:
+            p = a + b - c
+            pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
+            line[i] = (line[i] + (a if pa <= pb and pa <= pc else b if pb <= pc else c)) & 255
+    if y % 7 == 0:
+        values.update(line)
+    prev = line
+if len(values) < 2:
+    sys.exit(f"{path}: a uniform image")
+PYEOF
+}
+
+"$STF" run "$PROJ/tests/scenes/small_drop.yaml" -o s.h5 --quiet --threads 1 >run.out 2>run.err
+rc=$?
+[ $rc -eq 0 ] || { fail "stf run exited $rc"; cat run.err >&2; exit 1; }
+
+# render every third frame
+"$STF" render s.h5 --every 3 -o frames >render.out 2>render.err
+rc=$?
+if [ $rc -ne 0 ]; then
+    fail "stf render exited $rc"
+    cat render.err >&2
+else
+    nframes=$(ls frames/frame_*.png 2>/dev/null | wc -l)
+    [ "$nframes" -ge 2 ] || fail "stf render wrote $nframes frames"
+    [ -f frames/frame_0000.png ] || fail "frames/frame_0000.png missing"
+    for f in frames/frame_*.png; do
+        [ -s "$f" ] || { fail "$f empty"; continue; }
+        check_png "$f" 960 720 || fail "$f is not a valid picture"
+    done
+    size=$(wc -c <frames/frame_0001.png 2>/dev/null || echo 0)
+    [ "$size" -gt 5000 ] || fail "frames/frame_0001.png only $size bytes"
+fi
+
+# montage of chosen frames
+"$STF" render s.h5 --montage m.png --frames 0,3,6 --width 200 --height 160 >mont.out 2>mont.err
+rc=$?
+if [ $rc -ne 0 ]; then fail "stf render --montage exited $rc"; cat mont.err >&2
+else check_png m.png || fail "m.png is not a valid picture"; fi
+
+# speed colouring
+"$STF" render s.h5 --frames 2 --color speed -o speed --width 320 --height 240 >sp.out 2>sp.err
+rc=$?
+if [ $rc -ne 0 ]; then fail "stf render --color speed exited $rc"; cat sp.err >&2
+else check_png speed/frame_0000.png 320 240 || fail "speed/frame_0000.png invalid"; fi
+
+# plot
+"$STF" plot s.h5 -o p.png >plot.out 2>plot.err
+rc=$?
+if [ $rc -ne 0 ]; then fail "stf plot exited $rc"; cat plot.err >&2
+else check_png p.png || fail "p.png is not a valid picture"; fi
+
+# bad input
+"$STF" render /nonexistent.h5 >bad.out 2>bad.err
+rc=$?
+[ $rc -eq 2 ] || fail "stf render /nonexistent.h5 exited $rc, expected 2"
+[ -s bad.err ] || fail "stf render /nonexistent.h5 printed no message"
+"$STF" plot /nonexistent.h5 >bad2.out 2>bad2.err
+rc=$?
+[ $rc -eq 2 ] || fail "stf plot /nonexistent.h5 exited $rc, expected 2"
+"$STF" render s.h5 --frames 5:x >bad3.out 2>bad3.err
+rc=$?
+[ $rc -eq 2 ] || fail "stf render --frames 5:x exited $rc, expected 2"
+"$STF" plot s.h5 --body nosuchbody >bad4.out 2>bad4.err
+rc=$?
+[ $rc -eq 2 ] || fail "stf plot --body nosuchbody exited $rc, expected 2"
+
+if [ $fails -ne 0 ]; then
+    echo "cli_pictures: $fails failure(s)" >&2
+    exit 1
+fi
+echo "cli_pictures: ok"
