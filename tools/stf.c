@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "cli.h"
+#include "history_cli.h"
 #include "pictures.h"
 
 static void usage(FILE *to)
@@ -23,6 +24,8 @@ static void usage(FILE *to)
           "  stf render OUT.h5 [-o DIR] [--frames all|N|A:B|a,b,c] [--every K] [--color speed|khist|none]\n"
           "             [--width W] [--height H] [--camera x,y,z] [--look x,y,z] [--montage FILE.png]\n"
           "  stf plot OUT.h5 [-o FILE.png] [--body NAME]\n"
+          "  stf history [--fig 2|3|4|all] [-o DIR] [--q 0.2,0.5,0.8] [--d 50,150,500] [--dt S]\n"
+          "              [--k-hist K] [--profile FILE.csv]   (paper Fig. 2-4)\n"
           "exit codes: 0 ok, 1 expectation failed, 2 bad input, 3 numerical failure, "
           "130 interrupted\n",
           to);
@@ -40,11 +43,12 @@ int main(int argc, char **argv)
     if (!strcmp(cmd, "report")) return cli_report(argc - 2, argv + 2);
     if (!strcmp(cmd, "render")) return cli_render(argc - 2, argv + 2);
     if (!strcmp(cmd, "plot")) return cli_plot(argc - 2, argv + 2);
+    if (!strcmp(cmd, "history")) return cli_history(argc - 2, argv + 2);
     if (!strcmp(cmd, "--version")) {
         printf("stf %s\n", STF_VERSION);
         return 0;
     }
-    fprintf(stderr, "stf: unknown command '%s' (allowed: run, check, report, render, plot)\n", cmd);
+    fprintf(stderr, "stf: unknown command '%s' (allowed: run, check, report, render, plot, history)\n", cmd);
     usage(stderr);
     return 2;
 }
