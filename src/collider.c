@@ -324,10 +324,10 @@ static int maybe_near(const collider *c, const double x[3], double margin)
     return d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= R * R;
 }
 
-/* Projects particle i out of collider c and applies Coulomb friction: the tangential slip
- * relative to the surface drops by at most friction times the normal velocity change, so
- * the result does not depend on dt. Stores the impulse given to the particle in imp.
- * Returns 1 on contact. */
+/* Projects particle i out of collider c, stops its approach, and applies Coulomb friction:
+ * the tangential slip relative to the surface drops by at most friction times the normal
+ * velocity change, so the result does not depend on dt. Stores the impulse given to the
+ * particle in imp. Returns 1 on contact. */
 static int collide_one(stf_fluid *f, const collider *c, int i, double dt, double *imp)
 {
     double *x = f->x + 3 * i;
@@ -335,9 +335,15 @@ static int collide_one(stf_fluid *f, const collider *c, int i, double dt, double
     if (!maybe_near(c, x, rp)) return 0;
     double d = collider_sdf(c, x, nrm);
     if (d >= rp) return 0;
+    /* The penetration is removed from the position only (xprev moves along), so it adds no
+       velocity: a particle squeezed between two solids is not shot out (it was, at 30 m/s,
+       between a bowling ball and the floor). Velocity changes below carry the momentum. */
+    for (int a = 0; a < 3; a++) {
+        x[a] += (rp - d) * nrm[a];
+        f->xprev[3 * i + a] += (rp - d) * nrm[a];
+    }
     double old[3] = {x[0], x[1], x[2]};
-    for (int a = 0; a < 3; a++) x[a] += (rp - d) * nrm[a];
-    double jn = (rp - d) / dt; /* normal velocity change so far, m/s */
+    double jn = 0; /* normal velocity change, m/s */
     double vb[3], vrel[3];
     collider_velocity_at(c, x, vb);
     for (int a = 0; a < 3; a++) vrel[a] = (x[a] - f->xprev[3 * i + a]) / dt - vb[a];
