@@ -44,8 +44,10 @@ struct stf_fluid {
     float *khist_mean;      /* n: mean history stiffness of a particle's springs, 1/s^2 */
 
     /* Solid walls as a half-space of lattice particles (pressure.c): kernel density, near
-       density, and the normal sums of (1-q) and (1-q)^2, tabulated by distance to the wall. */
-    double wall_table[4][WALL_BINS + 1];
+       density, the normal sums of (1-q) and (1-q)^2, and the second moments of (1-q) normal
+       and along the wall, tabulated by distance to the wall. */
+    double wall_table[6][WALL_BINS + 1];
+    double grad_p[3]; /* hydrostatic pressure gradient (Clavet units per m), 0 without gravity */
     int ncolliders, collider_cap;
     collider *colliders;
 

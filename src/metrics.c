@@ -47,6 +47,7 @@ static void body_metrics(const stf_h5r *r, const char *name, double surface,
             b->roll_distance += sqrt(dx * dx + dy * dy);
         }
         if (isnan(b->sink_time) && z + hh < surface) b->sink_time = t[i];
+        if (!isnan(b->sink_time)) continue; /* under the surface: a rise is not a bounce */
         if (descending) {
             if (z < zmin) zmin = z;
             if (z >= zmin + g->min_rise) { /* a bounce: risen clearly above the minimum */

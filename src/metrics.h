@@ -4,8 +4,10 @@
  * - surface_height: top of the fluid at t = 0: the highest particle centre + spacing/2.
  * - contact: a body's lowest point (centre z - half_height) is within one spacing of
  *   surface_height. first_contact_time is the first body sample in contact.
- * - bounce: after first contact, the centre rises by at least bounce_min_rise above a local
- *   minimum; max_rebound_height is the largest such rise (local minimum to the next peak).
+ * - bounce: after first contact and before sink_time, the centre rises by at least
+ *   bounce_min_rise above a local minimum; max_rebound_height is the largest such rise (local
+ *   minimum to the next peak). A body that has sunk and is lifted by the fluid sloshing back
+ *   off the floor does not bounce.
  * - roll_distance: horizontal path length after first contact while the centre is above
  *   surface_height.
  * - sink_time: first time the body's top (centre z + half_height) is below surface_height;

@@ -16,14 +16,14 @@
 
 #include "fluid.h"
 
-enum { W_RHO, W_RHO_NEAR, W_F1, W_F2 };
+enum { W_RHO, W_RHO_NEAR, W_F1, W_F2, W_A, W_B, W_COUNT };
 
 void pressure_wall_table(stf_fluid *f)
 {
     double s = f->def.spacing, h = f->h;
     int m = (int)ceil(h / s) + 1;
     for (int b = 0; b <= WALL_BINS; b++) {
-        double d = h * b / WALL_BINS, sum[4] = {0, 0, 0, 0};
+        double d = h * b / WALL_BINS, sum[W_COUNT] = {0, 0, 0, 0, 0, 0};
         /* virtual sites: the mirror of the fluid lattice, first layer s/2 inside the solid */
         for (int layer = 0; layer <= m; layer++)
             for (int a = -m; a <= m; a++)
@@ -36,23 +36,37 @@ void pressure_wall_table(stf_fluid *f)
                     sum[W_RHO_NEAR] += w * w * w;
                     sum[W_F1] += w * cosn;
                     sum[W_F2] += w * w * cosn;
+                    sum[W_A] += w * dz * dz / r;
+                    sum[W_B] += w * dx * dx / r;
                 }
-        for (int k = 0; k < 4; k++) f->wall_table[k][b] = sum[k];
+        for (int k = 0; k < W_COUNT; k++) f->wall_table[k][b] = sum[k];
     }
+    /* The pressure gradient that holds the fluid up against gravity. In the bulk, a linear
+       pressure field G gives particle i the displacement -dt^2/2 M G, M = sum (1-q) dz^2/r
+       over the lattice neighbours; it cancels gravity's g dt^2 when G = 2 g / M. */
+    double M = 0;
+    for (int a = -m; a <= m; a++)
+        for (int b = -m; b <= m; b++)
+            for (int c = -m; c <= m; c++) {
+                double r = s * sqrt((double)(a * a + b * b + c * c));
+                if (r > 0 && r < h) M += (1 - r / h) * (c * s) * (c * s) / r;
+            }
+    int grav = (f->def.effects & STF_EFFECT_GRAVITY) != 0;
+    for (int a = 0; a < 3; a++) f->grad_p[a] = grav ? 2.0 * f->def.gravity[a] / M : 0.0;
 }
 
 /* Linear interpolation in the wall table at distance d (clamped to [0, h]). */
-static void wall_sums(const stf_fluid *f, double d, double out[4])
+static void wall_sums(const stf_fluid *f, double d, double out[W_COUNT])
 {
     double u = d / f->h * WALL_BINS;
     if (u < 0) u = 0;
     if (u >= WALL_BINS) {
-        out[0] = out[1] = out[2] = out[3] = 0;
+        for (int k = 0; k < W_COUNT; k++) out[k] = 0;
         return;
     }
     int b = (int)u;
     double t = u - b;
-    for (int k = 0; k < 4; k++)
+    for (int k = 0; k < W_COUNT; k++)
         out[k] = (1 - t) * f->wall_table[k][b] + t * f->wall_table[k][b + 1];
 }
 
@@ -72,7 +86,7 @@ static void density_one(stf_fluid *f, int i)
         rho_near += a * a * a;
     }
     for (int c = 0; c < f->ncolliders; c++) {
-        double nrm[3], w[4];
+        double nrm[3], w[W_COUNT];
         double d = collider_sdf(&f->colliders[c], x + 3 * i, nrm);
         if (d >= h) continue;
         wall_sums(f, d, w);
@@ -112,15 +126,26 @@ static void relax_one(stf_fluid *f, int i, double dt)
     f->dx[3 * i + 2] = dz;
 }
 
-/* The mirror particles' push on i from collider c (m), stored in f->dx as an impulse. */
+/* The mirror particles' push on i from collider c (m), stored in push.
+ *
+ * A mirror particle j carries i's pressure plus the hydrostatic difference G.r_j (Clavet
+ * pairs use (P_i + P_j)/2): with P_i alone, a face looking down (a floating body's bottom)
+ * is pushed as if the fluid above it were as deep as the particle, and floats a third of a
+ * spacing high; a floor is pushed too little. Tension-free fluid: the push never pulls. */
 static int wall_push_one(stf_fluid *f, const collider *c, int i, double dt, double *push)
 {
-    double nrm[3], w[4];
+    double nrm[3], w[W_COUNT];
     double d = collider_sdf(c, f->x + 3 * i, nrm);
     if (d >= f->h) return 0;
     wall_sums(f, d, w);
+    const double *G = f->grad_p;
+    double Gn = G[0] * nrm[0] + G[1] * nrm[1] + G[2] * nrm[2];
     double mag = dt * dt * (f->rho[i] * w[W_F1] + f->rho_near[i] * w[W_F2]);
-    for (int a = 0; a < 3; a++) push[3 * i + a] = mag * nrm[a];
+    /* -dt^2/2 sum (G.r_j)(1-q) r_j/r: along n the moment A, along the wall B */
+    double mag_n = mag - 0.5 * dt * dt * Gn * w[W_A];
+    if (!f->def.tension && mag_n < 0) mag_n = 0;
+    for (int a = 0; a < 3; a++)
+        push[3 * i + a] = mag_n * nrm[a] - 0.5 * dt * dt * w[W_B] * (G[a] - Gn * nrm[a]);
     return 1;
 }
 

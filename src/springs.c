@@ -215,6 +215,7 @@ int springs_step(stf_fluid *f, double dt)
     double khist_scale = has(f, STF_EFFECT_HISTORY)
                              ? f->def.k_hist * history_scale(f->def.q, dt)
                              : 0.0;
+    if (f->def.reference_spacing > 0) khist_scale *= f->def.reference_spacing / f->def.spacing;
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) displace_one(f, i, dt, khist_scale);
 #pragma omp parallel for schedule(static)

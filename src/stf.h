@@ -72,6 +72,11 @@ typedef struct stf_fluid_def {
     int d;                 /* history window, steps (>= 1); ignored if memory > 0 */
     double memory;         /* history window, s (> 0 overrides d: d = round(memory/dt)) */
     double k_hist;         /* history stiffness gain, 1/s^2 per m/s^q (>= 0) */
+    double reference_spacing; /* m (>= 0): if > 0, k_hist is the gain at this spacing and is
+                              scaled by reference_spacing/spacing. Neighbours' relative
+                              velocities shrink with the spacing for the same flow, so Eq. 6
+                              with a fixed k_hist softens as the resolution grows; 0: Eq. 6 as
+                              written */
     int history_mode;      /* enum stf_history_mode */
     /* boundary treatment (section 3.3) */
     double stick;          /* 1/s: tangential velocity at a wall decays at the rate
