@@ -426,3 +426,15 @@ int canvas_write_png(const canvas *c, const char *path, char *err, size_t errlen
     free(rows);
     return rc;
 }
+
+double canvas_nice_step(double range, int want)
+{
+    double raw = range / want, e = pow(10, floor(log10(raw))), m = raw / e;
+    return (m < 1.5 ? 1 : m < 3.5 ? 2 : m < 7.5 ? 5 : 10) * e;
+}
+
+int canvas_tick_decimals(double step)
+{
+    int d = (int)ceil(-log10(step) - 1e-9);
+    return d < 0 ? 0 : d > 6 ? 6 : d;
+}

@@ -72,4 +72,9 @@ void canvas_blit(canvas *dst, const canvas *src, int x, int y);
 /* Writes an 8-bit RGB PNG. Returns 0, or -1 with "PATH: why" in err. */
 int canvas_write_png(const canvas *c, const char *path, char *err, size_t errlen);
 
+/* Axis ticks for charts: a 1-2-5 step giving about `want` intervals over range, and the
+ * number of decimals that step needs in a label (0..6). */
+double canvas_nice_step(double range, int want);
+int canvas_tick_decimals(double step);
+
 #endif

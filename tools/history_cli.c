@@ -63,17 +63,6 @@ typedef struct frame {
 static double fx(const frame *f, double x) { return f->x0 + (x - f->a0) / (f->a1 - f->a0) * (f->x1 - f->x0); }
 static double fy(const frame *f, double y) { return f->y1 - (y - f->b0) / (f->b1 - f->b0) * (f->y1 - f->y0); }
 
-static double step_125(double range, int want)
-{
-    double raw = range / want, e = pow(10, floor(log10(raw))), m = raw / e;
-    return (m < 1.5 ? 1 : m < 3.5 ? 2 : m < 7.5 ? 5 : 10) * e;
-}
-
-static int step_decimals(double step)
-{
-    int d = (int)ceil(-log10(step) - 1e-9);
-    return d < 0 ? 0 : d > 6 ? 6 : d;
-}
 
 /* [0, hi] (or [lo, hi] when lo < 0) rounded out to whole ticks with a little headroom. */
 static void y_range(double lo, double hi, double *b0, double *b1)
@@ -81,7 +70,7 @@ static void y_range(double lo, double hi, double *b0, double *b1)
     if (!isfinite(lo) || !isfinite(hi)) lo = 0, hi = 1;
     if (lo > 0) lo = 0;
     if (!(hi > lo)) hi = lo + 1;
-    double step = step_125((hi - lo) * 1.06, 5);
+    double step = canvas_nice_step((hi - lo) * 1.06, 5);
     *b0 = lo < 0 ? floor(lo * 1.06 / step) * step : 0;
     *b1 = ceil(hi * 1.06 / step) * step;
     if (!(*b1 > *b0)) *b1 = *b0 + step;
@@ -128,8 +117,8 @@ static void bold_text(canvas *c, int x, int y, const char *s, const float rgb[3]
 static void draw_frame(canvas *c, const frame *f, const char *title, const char *xlabel,
                        const char *ylabel)
 {
-    double xs = step_125(f->a1 - f->a0, 8), ys = step_125(f->b1 - f->b0, 5);
-    int xd = step_decimals(xs), yd = step_decimals(ys);
+    double xs = canvas_nice_step(f->a1 - f->a0, 8), ys = canvas_nice_step(f->b1 - f->b0, 5);
+    int xd = canvas_tick_decimals(xs), yd = canvas_tick_decimals(ys);
     char buf[48];
     canvas_rect(c, f->x0, f->y0, f->x1, f->y1, WHITE);
     for (double v = ceil(f->b0 / ys - 1e-9) * ys; v <= f->b1 + ys * 1e-6; v += ys) {

@@ -59,18 +59,6 @@ typedef struct panel {
 static double px(const panel *p, double t) { return p->x0 + (t - p->t0) / (p->t1 - p->t0) * (p->x1 - p->x0); }
 static double py(const panel *p, double v) { return p->y1 - (v - p->v0) / (p->v1 - p->v0) * (p->y1 - p->y0); }
 
-/* A 1-2-5 step giving about `want` intervals over range. */
-static double nice_step(double range, int want)
-{
-    double raw = range / want, e = pow(10, floor(log10(raw))), m = raw / e;
-    return (m < 1.5 ? 1 : m < 3.5 ? 2 : m < 7.5 ? 5 : 10) * e;
-}
-
-static int decimals(double step)
-{
-    int d = (int)ceil(-log10(step) - 1e-9);
-    return d < 0 ? 0 : d > 6 ? 6 : d;
-}
 
 /* Expands [lo, hi] a little and to whole ticks. */
 static void nice_range(double *lo, double *hi)
@@ -81,15 +69,15 @@ static void nice_range(double *lo, double *hi)
         *hi += m;
     }
     double pad = (*hi - *lo) * 0.05;
-    double step = nice_step(*hi - *lo + 2 * pad, 5);
+    double step = canvas_nice_step(*hi - *lo + 2 * pad, 5);
     *lo = floor((*lo - pad) / step) * step;
     *hi = ceil((*hi + pad) / step) * step;
 }
 
 static void draw_axes(canvas *c, const panel *p, const char *ylabel, int xlabels)
 {
-    double ts = nice_step(p->t1 - p->t0, 8), vs = nice_step(p->v1 - p->v0, 5);
-    int td = decimals(ts), vd = decimals(vs);
+    double ts = canvas_nice_step(p->t1 - p->t0, 8), vs = canvas_nice_step(p->v1 - p->v0, 5);
+    int td = canvas_tick_decimals(ts), vd = canvas_tick_decimals(vs);
     char buf[48];
     for (double v = ceil(p->v0 / vs - 1e-9) * vs; v <= p->v1 + vs * 1e-6; v += vs) {
         double y = py(p, v);
