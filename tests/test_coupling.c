@@ -206,7 +206,7 @@ static void test_archimedes_sphere(void)
     printf("archimedes sphere: submerged fraction %.3f (Archimedes 0.5), centre %.2f spacings "
            "below the level\n", frac, (level - z) / spacing);
     /* Tolerance 0.1 of the volume (the centre within about 0.6 spacings of the level for
-       this 4-spacing sphere); measured 0.531. *
+       this 4-spacing sphere); measured 0.531. */
     CHECK(fabs(frac - 0.5) < 0.1, "submerged fraction %g, Archimedes gives 0.5", frac);
     free_pool(&p);
 }
