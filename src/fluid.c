@@ -301,7 +301,7 @@ int stf_fluid_remove_inside(stf_fluid *f, int id)
     int removed = f->n - m;
     if (removed) {
         f->n = m; /* keep the first m of perm; springs to the others are dropped */
-        fluid_permute(f, perm);
+        if (fluid_permute(f, perm) != 0) removed = -1;
     }
     free(perm);
     return removed;
@@ -317,15 +317,19 @@ static void permute_vec3(double *a, double *tmp, const int32_t *perm, int n)
     memcpy(a, tmp, (size_t)n * 3 * sizeof *a);
 }
 
-void fluid_permute(stf_fluid *f, const int32_t *perm)
+int fluid_permute(stf_fluid *f, const int32_t *perm)
 {
     int n = f->n;
+    int32_t *inv = malloc((size_t)f->cap * sizeof *inv);
+    int32_t *ids = malloc((size_t)f->cap * sizeof *ids);
+    if (!inv || !ids) {
+        free(inv);
+        free(ids);
+        return -1;
+    }
     permute_vec3(f->x, f->dx, perm, n);
     permute_vec3(f->v, f->dx, perm, n);
     permute_vec3(f->xprev, f->dx, perm, n);
-    int32_t *inv = malloc((size_t)f->cap * sizeof *inv);
-    int32_t *ids = malloc((size_t)f->cap * sizeof *ids);
-    if (!inv || !ids) abort(); /* a few bytes a particle; nothing sane is left to do */
     for (int i = 0; i < f->cap; i++) inv[i] = -1;
     for (int i = 0; i < n; i++) {
         ids[i] = f->id[perm[i]];
@@ -338,9 +342,10 @@ void fluid_permute(stf_fluid *f, const int32_t *perm)
         memcpy(f->khist_mean, k, (size_t)n * sizeof *k);
     }
     if (f->springs.n_alloc) springs_permute(&f->springs, perm, inv, n);
-    if (f->hist.n_alloc && history_permute(&f->hist, perm, n) != 0) abort();
+    int rc = f->hist.n_alloc ? history_permute(&f->hist, perm, n) : 0;
     free(inv);
     free(ids);
+    return rc;
 }
 
 /* --------------------------------------------------------------------- the step */
@@ -393,10 +398,10 @@ static int start_history(stf_fluid *f, double dt)
     return history_init(&f->hist, f->def.q, window, f->cap > 0 ? f->cap : 1);
 }
 
-static void reorder_by_cell(stf_fluid *f)
+static int reorder_by_cell(stf_fluid *f)
 {
     /* The grid's bucket order keeps each cell's particles together in memory. */
-    fluid_permute(f, f->grid.order);
+    return fluid_permute(f, f->grid.order);
 }
 
 static void gravity_apply(stf_fluid *f, double dt)
@@ -428,8 +433,7 @@ int stf_fluid_step(stf_fluid *f, double dt)
     TIMED(STAGE_GRID, {
         if (grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
         if (f->steps % f->reorder_interval == 0) {
-            reorder_by_cell(f);
-            if (grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
+            if (reorder_by_cell(f) != 0 || grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
         }
     });
     if (has(f, STF_EFFECT_HISTORY)) {

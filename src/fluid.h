@@ -66,8 +66,9 @@ void pressure_wall_table(stf_fluid *f);                       /* pressure.c */
 void collide_all(stf_fluid *f, double dt);                   /* collider.c */
 void boundary_stick(stf_fluid *f, double dt);                /* boundary.c */
 
-/* Permutes every per-particle array by perm (new index -> old index). */
-void fluid_permute(stf_fluid *f, const int32_t *perm);
+/* Permutes every per-particle array by perm (new index -> old index). Returns 0, or -1
+ * when out of memory (then nothing has moved, unless the history ring's copy failed). */
+int fluid_permute(stf_fluid *f, const int32_t *perm);
 
 static inline int has(const stf_fluid *f, unsigned effect) { return (f->def.effects & effect) != 0; }
 

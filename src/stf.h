@@ -132,7 +132,7 @@ int stf_fluid_add_collider(stf_fluid *f, const stf_collider_def *def, char *err,
 void stf_fluid_set_collider_state(stf_fluid *f, int id, const double pos[3], const double rot[9],
                                   const double vel[3], const double angvel[3]);
 /* Removes the particles whose centres lie inside collider id (set-up of overlapping bodies).
- * Returns how many were removed. */
+ * Returns how many were removed, or -1 when out of memory. */
 int stf_fluid_remove_inside(stf_fluid *f, int id);
 /* The impulse (N s) the fluid gave collider id during the last step, and its moment about
  * the collider position (N m s). */
