@@ -139,6 +139,22 @@ static double surface_level(const stf_fluid *f, double spacing, double rmin)
     return sum / cnt + 0.5 * spacing; /* particle centres sit half a spacing below the surface */
 }
 
+/* Couples body to the pool, lets it settle for 1 s and returns its mean centre height over
+ * the next 0.5 s. */
+static double float_height(pool *p, dBodyID body)
+{
+    char err[256];
+    CHECK(stf_ode_attach_body(p->c, body, NULL, err, sizeof err) == 0, "%s", err);
+    stf_ode_remove_overlaps(p->c);
+    double zsum = 0;
+    int zn = 0;
+    for (int k = 0; k < 1500; k++) {
+        CHECK(stf_ode_step(p->c, 0.001) == 0, "step %d: %s", k, stf_fluid_failure(p->f));
+        if (k >= 1000) zsum += dBodyGetPosition(body)[2], zn++;
+    }
+    return zsum / zn;
+}
+
 /* A box of half the fluid's density floats with half its height below the surface. */
 static void test_archimedes(void)
 {
@@ -151,18 +167,10 @@ static void test_archimedes(void)
     dBodySetMass(box, &m);
     dBodySetPosition(box, 0, 0, depth + H / 2 + 0.005);
     dGeomSetBody(dCreateBox(p.s, side, side, H), box);
-    char err[256];
-    CHECK(stf_ode_attach_body(p.c, box, NULL, err, sizeof err) == 0, "%s", err);
-    stf_ode_remove_overlaps(p.c);
-    double zsum = 0;
-    int zn = 0;
-    for (int k = 0; k < 1500; k++) {
-        CHECK(stf_ode_step(p.c, 0.001) == 0, "step %d: %s", k, stf_fluid_failure(p.f));
-        if (k >= 1000) zsum += dBodyGetPosition(box)[2], zn++; /* mean over the last 0.5 s */
-    }
+    double zmean = float_height(&p, box);
     /* The level from the fluid's volume (N s^3, the pool keeps its rest density to 0.3%,
        measured) plus what the box displaces: level = (N s^3 + draft side^2) / L^2. */
-    double bottom = zsum / zn - H / 2, A = L * L;
+    double bottom = zmean - H / 2, A = L * L;
     double vol = stf_fluid_count(p.f) * spacing * spacing * spacing;
     double draft = (vol / A - bottom) / (1 - side * side / A), want = rho_b / rho_f * H;
     double level = surface_level(p.f, spacing, 0.11);
@@ -185,17 +193,9 @@ static void test_archimedes_sphere(void)
     pool p = make_pool(spacing, L, depth, 0.2);
     dBodyID ball = make_sphere(p.w, p.s, R, 0.5 * rho_f * 4.0 / 3.0 * pi * R * R * R,
                                (double[3]){0, 0, depth + 0.3 * R});
-    char err[256];
-    CHECK(stf_ode_attach_body(p.c, ball, NULL, err, sizeof err) == 0, "%s", err);
-    stf_ode_remove_overlaps(p.c);
-    double zsum = 0;
-    int zn = 0;
-    for (int k = 0; k < 1500; k++) {
-        CHECK(stf_ode_step(p.c, 0.001) == 0, "step %d: %s", k, stf_fluid_failure(p.f));
-        if (k >= 1000) zsum += dBodyGetPosition(ball)[2], zn++;
-    }
+    double zmean = float_height(&p, ball);
     /* level from the fluid volume plus the submerged cap (fixed point) */
-    double z = zsum / zn, vol = stf_fluid_count(p.f) * spacing * spacing * spacing, level = depth;
+    double z = zmean, vol = stf_fluid_count(p.f) * spacing * spacing * spacing, level = depth;
     double cap = 0;
     for (int it = 0; it < 50; it++) {
         double hc = fmin(fmax(level - (z - R), 0), 2 * R);
