@@ -92,6 +92,7 @@ static int check_def(const stf_fluid_def *d, char *err, size_t errlen)
         if (!(d->k_hist >= 0 && isfinite(d->k_hist))) FAIL("k_hist: must be >= 0 (got %g)", d->k_hist);
         if (!(d->reference_spacing >= 0 && isfinite(d->reference_spacing)))
             FAIL("reference_spacing: must be >= 0 (got %g)", d->reference_spacing);
+        if (!(d->k_onset >= 0 && isfinite(d->k_onset))) FAIL("k_onset: must be >= 0 (got %g)", d->k_onset);
     }
     if (!(d->jitter >= 0 && d->jitter <= 0.45)) FAIL("jitter: must be in [0, 0.45] (got %g)", d->jitter);
     if (!(d->stick >= 0 && isfinite(d->stick))) FAIL("stick: must be >= 0 (got %g)", d->stick);
@@ -555,13 +556,13 @@ int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
         "tension: %s\nrest_density: %.9g  # kernel sum\nrest_near_density: %.9g  # kernel sum\n"
         "k_min: %.9g  # 1/s^2\nyield_ratio: %.9g\nplasticity: %.9g  # 1/s\nq: %.9g\n"
         "history_mode: %s\nhistory_steps: %d\nk_hist: %.9g  # 1/s^2 per m/s^q\n"
-        "reference_spacing: %.9g  # m\n"
+        "reference_spacing: %.9g  # m\nk_onset: %.9g  # 1/s^2\n"
         "stick: %.9g  # 1/s\n",
         effects, d->spacing, f->h, d->density, f->mass, d->jitter, d->gravity[0], d->gravity[1],
         d->gravity[2], d->sigma, d->beta, d->k, d->k_near, d->tension ? "true" : "false",
         f->rest_density, f->rest_near, d->k_min, d->yield_ratio, d->plasticity, d->q,
         d->history_mode == STF_HISTORY_FULL ? "full" : "window", stf_fluid_history_steps(f),
-        d->k_hist, d->reference_spacing, d->stick);
+        d->k_hist, d->reference_spacing, d->k_onset, d->stick);
 }
 
 uint64_t stf_fluid_hash(const stf_fluid *f)

@@ -473,6 +473,7 @@ static int parse_history(loader *L, const mapv *h)
     }
     if (get_num(L, h, "k_hist", R_NONNEG, &f->k_hist) < 0) return SCENE_BAD;
     if (get_num(L, h, "reference_spacing", R_NONNEG, &f->reference_spacing) < 0) return SCENE_BAD;
+    if (get_num(L, h, "k_onset", R_NONNEG, &f->k_onset) < 0) return SCENE_BAD;
     if (get_choice(L, h, "mode", modes, &mode) < 0) return SCENE_BAD;
     if (has(h, "mode")) f->history_mode = mode ? STF_HISTORY_FULL : STF_HISTORY_WINDOW;
     return 0;
@@ -508,7 +509,7 @@ static const char *const gravity_keys[] = {"g", NULL};
 static const char *const viscosity_keys[] = {"sigma", "beta", NULL};
 static const char *const pressure_keys[] = {"k", "k_near", "rest_density", "tension", NULL};
 static const char *const springs_keys[] = {"k_min", "yield_ratio", "plasticity", NULL};
-static const char *const history_keys[] = {"q", "d", "memory", "k_hist", "mode", "reference_spacing", NULL};
+static const char *const history_keys[] = {"q", "d", "memory", "k_hist", "mode", "reference_spacing", "k_onset", NULL};
 static const char *const stick_keys[] = {"stick", NULL};
 
 static int parse_effects(loader *L, const mapv *top)

@@ -149,6 +149,7 @@ static int adjust_one(stf_fluid *f, int i, int64_t stamp, int64_t *mark)
 /* Alg. 3 with Eq. 6 for particle i: gathers -D/2 of each of its springs into f->dx. */
 static void displace_one(stf_fluid *f, int i, double dt, double khist_scale)
 {
+    const double k_onset = f->def.k_onset;
     const stf_springs *s = &f->springs;
     const double *x = f->x, *D = f->hist.D;
     double h = f->h, dx = 0, dy = 0, dz = 0, ksum = 0;
@@ -166,6 +167,7 @@ static void displace_one(stf_fluid *f, int i, double dt, double khist_scale)
             double ex = D[3 * i] - D[3 * j], ey = D[3 * i + 1] - D[3 * j + 1],
                    ez = D[3 * i + 2] - D[3 * j + 2];
             double kh = khist_scale * sqrt(ex * ex + ey * ey + ez * ez); /* Eq. 6 */
+            kh = kh > k_onset ? kh - k_onset : 0.0; /* thickening starts at the onset */
             kij += kh;
             ksum += kh;
         }

@@ -77,6 +77,10 @@ typedef struct stf_fluid_def {
                               velocities shrink with the spacing for the same flow, so Eq. 6
                               with a fixed k_hist softens as the resolution grows; 0: Eq. 6 as
                               written */
+    double k_onset;        /* 1/s^2 (>= 0): onset of thickening. A spring's history stiffness
+                              kh below k_onset is slow creep or lattice noise and stiffens
+                              nothing; above it only the excess counts:
+                              k = k_min + max(0, kh - k_onset). 0: Eq. 6 as written */
     int history_mode;      /* enum stf_history_mode */
     /* boundary treatment (section 3.3) */
     double stick;          /* 1/s: tangential velocity at a wall decays at the rate

@@ -184,17 +184,23 @@ static void test_containment(void)
 
 /* ------------------------------------------------------------------ effects off */
 
-static stf_fluid *drop_scene(unsigned effects, double k_hist)
+static stf_fluid *drop_scene_onset(unsigned effects, double k_hist, double k_onset)
 {
     stf_fluid_def d = stf_default_fluid_def();
     d.effects = effects;
     d.k_hist = k_hist;
+    d.k_onset = k_onset;
     stf_fluid *f = make_fluid(&d);
     if (!f) return NULL;
     add_container(f, 0.06, 0.06, 0.2, 0.2);
     double lo[3] = {-0.05, -0.05, 0.0}, hi[3] = {0.05, 0.05, 0.06}, v0[3] = {0.5, 0.2, -1.0};
     stf_fluid_add_block(f, lo, hi, v0);
     return f;
+}
+
+static stf_fluid *drop_scene(unsigned effects, double k_hist)
+{
+    return drop_scene_onset(effects, k_hist, 0.0);
 }
 
 static void test_effects_off(void)
@@ -260,6 +266,22 @@ static void test_effects_off(void)
     kmax = 0;
     for (int i = 0; i < stf_fluid_count(c); i++) kmax = k[i] > kmax ? k[i] : kmax;
     CHECK(kmax > 0, "k_hist = 1e4: no history stiffness");
+
+    /* k_onset above every history stiffness the run reaches: no spring thickens and no wall
+       sticks, so the run is again Clavet's model bit for bit; an onset at half the peak
+       stiffness of run c changes the run but keeps some thickening. */
+    stf_fluid *hi = drop_scene_onset(all, 1e4, 1e12), *mid = drop_scene_onset(all, 1e4, 0.5 * kmax);
+    if (hi && mid) {
+        run(hi, 300, 1e-3);
+        run(mid, 300, 1e-3);
+        CHECK(stf_fluid_hash(hi) == stf_fluid_hash(b),
+              "k_onset = 1e12 (%016llx) differs from history off (%016llx)",
+              (unsigned long long)stf_fluid_hash(hi), (unsigned long long)stf_fluid_hash(b));
+        CHECK(stf_fluid_hash(mid) != stf_fluid_hash(b) && stf_fluid_hash(mid) != stf_fluid_hash(c),
+              "k_onset = %g gives the run without onset or without history", 0.5 * kmax);
+    }
+    stf_fluid_destroy(hi);
+    stf_fluid_destroy(mid);
     free(k);
     stf_fluid_destroy(a);
     stf_fluid_destroy(b);
