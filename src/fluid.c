@@ -346,6 +346,7 @@ int fluid_permute(stf_fluid *f, const int32_t *perm)
         memcpy(f->khist_mean, k, (size_t)n * sizeof *k);
     }
     if (f->springs.n_alloc) springs_permute(&f->springs, perm, inv, n);
+    grid_invalidate(&f->grid); /* its candidate lists hold the old indices */
     int rc = f->hist.n_alloc ? history_permute(&f->hist, perm, n) : 0;
     free(inv);
     free(ids);
@@ -437,10 +438,14 @@ int stf_fluid_step(stf_fluid *f, double dt)
     }
     if (has(f, STF_EFFECT_HISTORY) && f->hist.w == NULL && start_history(f, dt) != 0) goto oom;
     TIMED(STAGE_GRID, {
-        if (grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
-        if (f->steps % f->reorder_interval == 0) {
-            if (reorder_by_cell(f) != 0 || grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
+        /* Particles are re-sorted by cell (memory locality) when the neighbour candidates
+           are rebuilt anyway, at most every reorder_interval steps: particles that stay put
+           stay in order and keep their candidate lists. */
+        if (grid_due(&f->grid, f->x, n, f->h) && f->steps >= f->next_reorder) {
+            if (grid_sort(&f->grid, f->x, n, f->h) != 0 || reorder_by_cell(f) != 0) goto oom;
+            f->next_reorder = f->steps + f->reorder_interval;
         }
+        if (grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
     });
     if (has(f, STF_EFFECT_HISTORY)) {
         TIMED(STAGE_HISTORY, {

@@ -19,13 +19,14 @@ static void gather_one(stf_fluid *f, int i, double dt)
         double rx = x[3 * j] - x[3 * i], ry = x[3 * j + 1] - x[3 * i + 1],
                rz = x[3 * j + 2] - x[3 * i + 2];
         double r = sqrt(rx * rx + ry * ry + rz * rz);
-        if (r >= h || r <= 1e-12 * h) continue;
         double q = r / h;
         /* u: how fast i and j approach each other along their line */
         double u = ((v[3 * i] - v[3 * j]) * rx + (v[3 * i + 1] - v[3 * j + 1]) * ry +
                     (v[3 * i + 2] - v[3 * j + 2]) * rz) / r;
-        if (u <= 0) continue;
+        /* Branch-free (about half the pairs separate, unpredictably): a skipped pair adds
+           I = +0, which leaves the sums' bits as they were. */
         double I = 0.5 * dt * (1.0 - q) * (sigma * u + beta * u * u) / r;
+        I = (u > 0 && r < h && r > 1e-12 * h) ? I : 0.0;
         ax -= I * rx;
         ay -= I * ry;
         az -= I * rz;
