@@ -75,7 +75,7 @@ static int sort_by_bucket(stf_grid *g, const double *x, int n)
     return 0;
 }
 
-/* Fills particle i's candidate list (r < sqrt(r2), sorted by index); returns how many it
+/* Fills particle i's candidate list (r < sqrt(h2)) in cell-visit order; returns how many it
  * has (may exceed the stride, then the list is incomplete). */
 static int find_candidates(const stf_grid *g, const double *x, int i, double h2)
 {
@@ -85,6 +85,7 @@ static int find_candidates(const stf_grid *g, const double *x, int i, double h2)
     uint32_t seen[27];
     int nseen = 0, cnt = 0;
     int32_t *out = g->cand + (size_t)i * (size_t)g->cstride;
+    int last = g->cstride - 1;
     for (int dz = -1; dz <= 1; dz++)
         for (int dy = -1; dy <= 1; dy++)
             for (int dx = -1; dx <= 1; dx++) {
@@ -98,21 +99,12 @@ static int find_candidates(const stf_grid *g, const double *x, int i, double h2)
                     if (j == i) continue;
                     double rx = x[3 * j] - x[3 * i], ry = x[3 * j + 1] - x[3 * i + 1],
                            rz = x[3 * j + 2] - x[3 * i + 2];
-                    if (rx * rx + ry * ry + rz * rz >= h2) continue;
-                    if (cnt < g->cstride) out[cnt] = j;
-                    cnt++;
+                    /* branch-free append; past the stride the last slot is overwritten
+                       and the caller widens the lists and redoes them */
+                    out[cnt < last ? cnt : last] = j;
+                    cnt += rx * rx + ry * ry + rz * rz < h2;
                 }
             }
-    if (cnt <= g->cstride) /* insertion sort: short, nearly sorted lists */
-        for (int a = 1; a < cnt; a++) {
-            int32_t v = out[a];
-            int b = a - 1;
-            while (b >= 0 && out[b] > v) {
-                out[b + 1] = out[b];
-                b--;
-            }
-            out[b + 1] = v;
-        }
     return cnt;
 }
 
@@ -159,7 +151,7 @@ static double max_moved2(const stf_grid *g, const double *x, int n)
     return most;
 }
 
-/* Particle i's neighbours within h: its candidates filtered, in index order (the neighbour
+/* Particle i's neighbours within h: its candidates filtered, in their order (the neighbour
  * stride is kept >= the candidate stride, so every candidate has a slot). */
 static int filter_one(stf_grid *g, const double *x, int i, double h2)
 {

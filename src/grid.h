@@ -1,12 +1,12 @@
 /* grid.h - uniform-grid neighbour search (Teschner et al. spatial hashing).
  *
  * Cells of size h + skin are hashed into a power-of-two table; particles are counting-sorted
- * by bucket. Each particle gets a candidate list (r < h + skin, sorted by index) in a
- * fixed-stride table, rebuilt only when some particle has moved more than skin/2 since the
- * last rebuild (Verlet lists), or when the particles were reordered. Every step the
- * candidates are filtered to the neighbours within h, in index order: the lists (and so the
- * sums over them) do not depend on when the candidates were rebuilt, nor on the thread
- * count (built in parallel with no shared writes). */
+ * by bucket. Each particle gets a candidate list (r < h + skin) in a fixed-stride table,
+ * rebuilt only when some particle has moved more than skin/2 since the last rebuild (Verlet
+ * lists), or when the particles were reordered. Every step the candidates are filtered to the
+ * neighbours within h. The rebuilds depend on the positions only and the lists are built in
+ * parallel with no shared writes, so the lists (and the order of every sum over them) do not
+ * depend on the thread count. */
 #ifndef STF_GRID_H
 #define STF_GRID_H
 
@@ -25,7 +25,7 @@ typedef struct stf_grid {
     int n_alloc;       /* particles the arrays hold */
     uint32_t nbuckets_alloc;
     /* Verlet candidates */
-    int32_t *cand;     /* n * cstride: candidate indices (r < h + skin at the rebuild), sorted */
+    int32_t *cand;     /* n * cstride: candidate indices (r < h + skin at the rebuild) */
     int32_t *ccount;   /* n: candidates of each particle */
     int cstride;
     double *xref;      /* 3n: positions at the last rebuild */

@@ -97,9 +97,12 @@ static int widen(stf_springs *s, int n, int stride)
 static double plastic_rest(double L, double r, double gamma, double alpha, double dt)
 {
     double tol = gamma * L;
-    if (r > L + tol) return L + dt * alpha * (r - L - tol);
-    if (r < L - tol) return L - dt * alpha * (L - tol - r);
-    return L;
+    /* Branch-free (stretched or compressed is a coin toss with yield_ratio 0): the branch
+       not taken adds (dt alpha) * +-0, which leaves L's bits as they are (L > 0). Same values
+       as: r > L + tol ? L + dt alpha (r - L - tol) : r < L - tol ? L - dt alpha (L - tol - r) : L */
+    double up = (double)(r > L + tol) * (r - L - tol);
+    double down = (double)(r < L - tol) * (L - tol - r);
+    return L + dt * alpha * up - dt * alpha * down;
 }
 
 /* Rebuilds particle i's spring list into the second buffer; returns its new count (may
