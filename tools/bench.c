@@ -18,8 +18,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "canvas.h"
@@ -110,6 +112,7 @@ typedef struct timing {
     int particles;
     long springs;
     double step_ms;                /* wall per coupled step (fluid + ODE), ms */
+    double cpu_ms;                 /* process cpu time per step (all threads), ms */
     double stage_ms[STAGE_COUNT];  /* per fluid stage, ms per step */
     size_t bytes[6];               /* per effect, bytes (index = bit of enum stf_effect) */
     int history_steps;
@@ -120,6 +123,13 @@ static const char *const effect_names[6] = {"gravity", "viscosity", "pressure", 
 static const char *const stage_names[STAGE_COUNT] = {"grid",     "gravity",  "viscosity",
                                                      "springs",  "history",  "pressure",
                                                      "collide",  "boundary"};
+
+static double cpu_seconds(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
 
 /* Loads a scene (from path, or text when path is NULL), runs `warm` steps, then times
  * `steps` steps. Returns 0, 2 bad scene, 3 numerical failure. */
@@ -145,9 +155,9 @@ static int time_scene(const char *path, const char *text, const stf_override *ov
     for (int s = 0; s < warm && rc == 0; s++) rc = stf_sim_step(sim);
     double before[STAGE_COUNT];
     memcpy(before, sim->fluid->stage_seconds, sizeof before);
-    double t0 = omp_get_wtime();
+    double t0 = omp_get_wtime(), c0 = cpu_seconds();
     for (int s = 0; s < steps && rc == 0; s++) rc = stf_sim_step(sim);
-    double wall = omp_get_wtime() - t0;
+    double wall = omp_get_wtime() - t0, cpu = cpu_seconds() - c0;
     if (rc != 0) {
         fprintf(stderr, "stf bench: numerical failure: %s\n", stf_fluid_failure(sim->fluid));
         rc = 3;
@@ -155,6 +165,7 @@ static int time_scene(const char *path, const char *text, const stf_override *ov
         t->particles = stf_fluid_count(sim->fluid);
         t->springs = stf_fluid_spring_count(sim->fluid);
         t->step_ms = 1e3 * wall / steps;
+        t->cpu_ms = 1e3 * cpu / steps;
         for (int k = 0; k < STAGE_COUNT; k++)
             t->stage_ms[k] = 1e3 * (sim->fluid->stage_seconds[k] - before[k]) / steps;
         for (int e = 0; e < 6; e++) t->bytes[e] = stf_fluid_effect_bytes(sim->fluid, 1u << e);
@@ -212,9 +223,9 @@ static int bench_table1(const bench_args *a)
     const char *bowling = a->scene ? a->scene : "scenes/bowling_ball.yaml";
     printf("# stf bench table1: %d timed steps after 5 warm-up steps (--full: 200)\n", a->steps);
     print_load();
-    printf("%-12s %4s %6s | %10s %10s %8s %8s | %10s %10s %8s | %8s %8s\n", "experiment", "d",
-           "n", "step ms", "hist ms", "hist %", "mem MB", "paper s", "paper ms", "paper MB",
-           "x step", "x hist");
+    printf("%-12s %4s %6s | %10s %10s %8s %8s %9s | %10s %10s %8s | %8s %8s\n", "experiment",
+           "d", "n", "step ms", "hist ms", "hist %", "mem MB", "cpu ms", "paper s", "paper ms",
+           "paper MB", "x step", "x hist");
     for (int e = 0; e < 2; e++) {
         for (int k = 0; k < 4; k++) {
             stf_override ov[MAX_OV + 4];
@@ -234,9 +245,9 @@ static int bench_table1(const bench_args *a)
             double simstep = t.step_ms - hist; /* the step without the history terms */
             double mem = 12.0 * t.particles * ds[k] / 1e6; /* the paper's 12 n d */
             double pm = 12.0 * 20000 * ds[k] / 1e6;
-            printf("%-12s %4d %6d | %10.2f %10.3f %7.1f%% %8.1f | %10.3f %10.0f %8.0f | %8.0f %8s\n",
+            printf("%-12s %4d %6d | %10.2f %10.3f %7.1f%% %8.1f %9.2f | %10.3f %10.0f %8.0f | %8.0f %8s\n",
                    e == 0 ? "bowling" : "vibration", ds[k], t.particles, simstep, hist,
-                   100.0 * hist / t.step_ms, mem, paper_step[e][k], paper_hist[e][k], pm,
+                   100.0 * hist / t.step_ms, mem, t.cpu_ms, paper_step[e][k], paper_hist[e][k], pm,
                    1e3 * paper_step[e][k] / simstep,
                    ds[k] ? (snprintf(dv, sizeof dv, "%.0f", paper_hist[e][k] / hist), dv) : "-");
             if (ds[k] && t.bytes[4] < (size_t)(mem * 1e6))
@@ -245,7 +256,8 @@ static int bench_table1(const bench_args *a)
         }
     }
     printf("# step ms: wall per step minus the history stage; hist ms: the history stage (ring\n"
-           "# push + weighted sums); mem: 12 n d (allocated: d+1 float32 vectors per particle).\n"
+           "# push + weighted sums); mem: 12 n d (allocated: d+1 float32 vectors per particle);\n"
+           "# cpu ms: process cpu time per whole step, all threads (steadier than wall on a busy machine).\n"
            "# x step, x hist: paper time / our time (paper: one i7-2600K core, 2011).\n");
     return 0;
 }
@@ -264,7 +276,7 @@ static int bench_effects(const bench_args *a)
     stf_scene_free(sc);
     printf("# stf bench effects %s: %d timed steps after 5 warm-up steps\n", a->scene, a->steps);
     print_load();
-    printf("%-22s %9s %9s |", "run", "step ms", "saved ms");
+    printf("%-22s %9s %9s %9s |", "run", "step ms", "cpu ms", "saved ms");
     for (int k = 0; k < STAGE_COUNT; k++) printf(" %9s", stage_names[k]);
     printf(" | %s\n", "effect storage (B)");
     timing base = {0};
@@ -291,7 +303,7 @@ static int bench_effects(const bench_args *a)
         }
         if (rc) return rc;
         if (e < 0) base = t, base_ms = t.step_ms;
-        printf("%-22s %9.2f %9.2f |", label, t.step_ms, e < 0 ? 0.0 : base_ms - t.step_ms);
+        printf("%-22s %9.2f %9.2f %9.2f |", label, t.step_ms, t.cpu_ms, e < 0 ? 0.0 : base_ms - t.step_ms);
         for (int k = 0; k < STAGE_COUNT; k++) printf(" %9.3f", t.stage_ms[k]);
         printf(" |");
         for (int k = 0; k < 6; k++)
@@ -321,7 +333,8 @@ static int bench_effects(const bench_args *a)
 typedef struct acc_run {
     char knob[16], setting[48];
     double value;     /* the knob's value (dt s, spacing m, history: terms or d) */
-    double wall;      /* s */
+    double wall;      /* s, the run's own wall clock of its steps */
+    double cpu;       /* s, user + system time of the whole child process */
     int ok;
     stf_metrics m;
     int nb;           /* body samples */
@@ -332,7 +345,7 @@ typedef struct acc_run {
 } acc_run;
 
 static int spawn_run(const char *self, const char *scene, const char *out, const bench_args *a,
-                     const char *const *extra, int nextra, double duration)
+                     const char *const *extra, int nextra, double duration, double *cpu)
 {
     const char *argv[2 * MAX_OV + 32];
     int n = 0;
@@ -367,7 +380,10 @@ static int spawn_run(const char *self, const char *scene, const char *out, const
     pid_t pid;
     if (posix_spawn(&pid, self, NULL, NULL, (char *const *)argv, environ) != 0) return -1;
     int st;
-    if (waitpid(pid, &st, 0) < 0) return -1;
+    struct rusage ru;
+    if (wait4(pid, &st, 0, &ru) < 0) return -1;
+    *cpu = (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec +
+           (double)ru.ru_stime.tv_sec + 1e-6 * (double)ru.ru_stime.tv_usec;
     return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
 }
 
@@ -469,7 +485,7 @@ static void plot_pareto(const char *path, acc_run *runs, int nruns, double budge
     double tmin = INFINITY, tmax = -INFINITY, emin = INFINITY, emax = -INFINITY;
     for (int i = 0; i < nruns; i++) {
         if (!runs[i].ok) continue;
-        tmin = fmin(tmin, runs[i].wall), tmax = fmax(tmax, runs[i].wall);
+        tmin = fmin(tmin, runs[i].cpu), tmax = fmax(tmax, runs[i].cpu);
         double e = fmax(runs[i].err_body, 1e-5);
         emin = fmin(emin, e), emax = fmax(emax, e);
     }
@@ -502,18 +518,23 @@ static void plot_pareto(const char *path, acc_run *runs, int nruns, double budge
     canvas_dashed_line(c, x0, PY(budget), x1, PY(budget), RED, 1.5, 8, 6);
     snprintf(buf, sizeof buf, "budget %g m", budget);
     canvas_text_halo(c, x1 - 10 - canvas_text_width(buf, 2), (int)PY(budget) - 20, buf, RED, WHITE, 2);
-    canvas_text(c, x0, 20, "error vs wall time (each knob against its fine reference)", BLACK, 2);
-    canvas_text(c, x0, 44, "y: rms body path error, m   x: wall time, s", BLACK, 2);
+    canvas_text(c, x0, 20, "error vs cost (each knob against its finest setting)", BLACK, 2);
+    canvas_text(c, x0, 44, "y: rms body path error, m (reference: 1e-5)   x: cpu time, s", BLACK, 2);
     for (int k = 0; k < 3; k++) {
         double px = 0, py = 0;
-        int have = 0;
+        char series[16] = "";
         for (int i = 0; i < nruns; i++) {
             if (!runs[i].ok || strcmp(runs[i].knob, knobs[k])) continue;
-            double x = PX(runs[i].wall), y = PY(fmax(runs[i].err_body, 1e-5));
-            if (have) canvas_line(c, px, py, x, y, col[k], 2);
+            /* one line per mode: window d, soe K (full and its 0 error stand alone) */
+            char mode[16];
+            snprintf(mode, sizeof mode, "%s", runs[i].setting);
+            mode[strcspn(mode, " =")] = 0;
+            double x = PX(runs[i].cpu), y = PY(fmax(runs[i].err_body, 1e-5));
+            if (!strcmp(series, mode)) canvas_line(c, px, py, x, y, col[k], 2);
             canvas_circle(c, x, y, 5, col[k]);
-            canvas_text_halo(c, (int)x + 8, (int)y - 7, runs[i].setting, col[k], WHITE, 1);
-            px = x, py = y, have = 1;
+            canvas_text_halo(c, (int)x + 8, (int)y - 7 - 10 * (i % 2), runs[i].setting, col[k], WHITE, 1);
+            px = x, py = y;
+            snprintf(series, sizeof series, "%s", mode);
         }
         canvas_circle(c, x0 + 35 + 220 * k, y1 + 57, 5, col[k]);
         canvas_text(c, x0 + 48 + 220 * k, y1 + 50, knobs[k], BLACK, 2);
@@ -608,11 +629,11 @@ static int bench_accuracy(const bench_args *a, const char *self)
                 extra[ne++] = "--set", extra[ne++] = v3;
             }
         }
-        int rc = spawn_run(self, a->scene, path, a, extra, ne, duration);
+        int rc = spawn_run(self, a->scene, path, a, extra, ne, duration, &r->cpu);
         r->ok = (rc == 0 || rc == 3) && read_run(path, r) == 0;
         if (rc == 3) r->ok = 0;
-        fprintf(stderr, "  %-8s %-18s %s, %.1f s wall\n", r->knob, r->setting,
-                r->ok ? "ok" : rc == 3 ? "numerical failure" : "failed", r->wall);
+        fprintf(stderr, "  %-8s %-18s %s, %.1f s wall, %.1f s cpu\n", r->knob, r->setting,
+                r->ok ? "ok" : rc == 3 ? "numerical failure" : "failed", r->wall, r->cpu);
     }
     /* Errors against the first (finest) run of the same knob. */
     char csv[1024];
@@ -622,10 +643,10 @@ static int bench_accuracy(const bench_args *a, const char *self)
         fprintf(stderr, "stf bench: cannot write %s\n", csv);
         return 2;
     }
-    fprintf(fc, "knob,setting,wall_s,err_body_path_m,err_fluid_com_m,err_metrics,bounces,"
+    fprintf(fc, "knob,setting,wall_s,cpu_s,err_body_path_m,err_fluid_com_m,err_metrics,bounces,"
                 "max_rebound_height_m,first_contact_s,sink_time_s,float_duration_s,roll_distance_m,"
                 "com_rebound_height_m\n");
-    printf("%-8s %-18s %9s %12s %12s %12s %7s %9s %9s\n", "knob", "setting", "wall s",
+    printf("%-8s %-18s %9s %9s %12s %12s %12s %7s %9s %9s\n", "knob", "setting", "wall s", "cpu s",
            "body path m", "fluid com m", "metrics", "bounces", "rebound", "sink s");
     for (int i = 0; i < nruns; i++) {
         acc_run *r = &runs[i];
@@ -633,7 +654,7 @@ static int bench_accuracy(const bench_args *a, const char *self)
         while (ref > 0 && !strcmp(runs[ref - 1].knob, r->knob)) ref--;
         const acc_run *R = &runs[ref];
         if (!r->ok || !R->ok) {
-            fprintf(fc, "%s,%s,,,,,,,,,,,\n", r->knob, r->setting);
+            fprintf(fc, "%s,%s,,,,,,,,,,,,\n", r->knob, r->setting);
             printf("%-8s %-18s   (failed)\n", r->knob, r->setting);
             continue;
         }
@@ -642,13 +663,13 @@ static int bench_accuracy(const bench_args *a, const char *self)
         r->err_com = path_error(r->ft, r->fc, r->nf, R->ft, R->fc, R->nf);
         r->err_metric = metric_error(&r->m, &R->m);
         const stf_body_metrics *b = r->m.nbodies ? &r->m.bodies[0] : NULL;
-        fprintf(fc, "%s,%s,%.4f,%.6g,%.6g,%.6g,%d,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n", r->knob,
-                r->setting, r->wall, r->err_body, r->err_com, r->err_metric, b ? b->bounces : 0,
+        fprintf(fc, "%s,%s,%.4f,%.4f,%.6g,%.6g,%.6g,%d,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n", r->knob,
+                r->setting, r->wall, r->cpu, r->err_body, r->err_com, r->err_metric, b ? b->bounces : 0,
                 b ? b->max_rebound_height : NAN, b ? b->first_contact_time : NAN,
                 b ? b->sink_time : NAN, b ? b->float_duration : NAN, b ? b->roll_distance : NAN,
                 r->m.com_rebound_height);
-        printf("%-8s %-18s %9.2f %12.5f %12.5f %12.5f %7d %9.4f %9.4f\n", r->knob, r->setting,
-               r->wall, r->err_body, r->err_com, r->err_metric, b ? b->bounces : 0,
+        printf("%-8s %-18s %9.2f %9.2f %12.5f %12.5f %12.5f %7d %9.4f %9.4f\n", r->knob, r->setting,
+               r->wall, r->cpu, r->err_body, r->err_com, r->err_metric, b ? b->bounces : 0,
                b ? b->max_rebound_height : NAN, b ? b->sink_time : NAN);
     }
     fclose(fc);
@@ -657,14 +678,14 @@ static int bench_accuracy(const bench_args *a, const char *self)
         int j = i, best = -1;
         while (j < nruns && !strcmp(runs[j].knob, runs[i].knob)) {
             if (j > i && runs[j].ok && runs[j].err_body <= a->error &&
-                (best < 0 || runs[j].wall < runs[best].wall))
+                (best < 0 || runs[j].cpu < runs[best].cpu))
                 best = j;
             j++;
         }
         if (best >= 0)
-            printf("cheapest %-8s within %g m: %s (%.2f s wall, error %.4f m; reference %s %.2f s)\n",
-                   runs[i].knob, a->error, runs[best].setting, runs[best].wall, runs[best].err_body,
-                   runs[i].setting, runs[i].wall);
+            printf("cheapest %-8s within %g m: %s (%.2f s cpu, error %.4f m; reference %s %.2f s cpu)\n",
+                   runs[i].knob, a->error, runs[best].setting, runs[best].cpu, runs[best].err_body,
+                   runs[i].setting, runs[i].cpu);
         else
             printf("cheapest %-8s within %g m: none but the reference %s\n", runs[i].knob, a->error,
                    runs[i].setting);
