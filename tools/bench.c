@@ -62,8 +62,9 @@ static int parse(int argc, char **argv, bench_args *a)
     a->error = 0.01;
     if (argc < 1) return bad("needs one of table1, effects, accuracy; got", "");
     a->what = argv[0];
-    if (strcmp(a->what, "table1") && strcmp(a->what, "effects") && strcmp(a->what, "accuracy"))
-        return bad("unknown benchmark (allowed: table1, effects, accuracy):", a->what);
+    if (strcmp(a->what, "table1") && strcmp(a->what, "effects") && strcmp(a->what, "accuracy") &&
+        strcmp(a->what, "scaling"))
+        return bad("unknown benchmark (allowed: table1, effects, accuracy, scaling):", a->what);
     for (int i = 1; i < argc; i++) {
         const char *s = argv[i];
         int more = i + 1 < argc;
@@ -358,6 +359,47 @@ static int bench_effects(const bench_args *a)
         if (!(have & (1u << e))) printf(" %s", effect_names[e]);
     printf("\n# %d particles, %ld springs in the full run; neighbour candidates rebuilt in %ld of "
            "the %d timed steps\n", base.particles, base.springs, base.rebuilds, a->steps);
+    return 0;
+}
+
+/* ------------------------------------------------------------------------- scaling */
+
+/* The scene at its spacing and at spacing / 10^(1/3) (10x the particles): cost per step. */
+static int bench_scaling(const bench_args *a)
+{
+    char err[2048];
+    stf_scene *sc;
+    if (stf_scene_load(a->scene, a->ov, a->nov, &sc, err, sizeof err) != 0) {
+        fprintf(stderr, "%s\n", err);
+        return 2;
+    }
+    double sp = sc->fluid.spacing;
+    stf_scene_free(sc);
+    printf("# stf bench scaling %s: %d timed steps after %d warm-up steps\n", a->scene, a->steps,
+           a->warmup);
+    print_load();
+    printf("%12s %9s %10s %10s %14s %8s\n", "spacing m", "n", "step ms", "cpu ms", "particles/s",
+           "x time");
+    double first = 0;
+    int n0 = 0;
+    for (int k = 0; k < 2; k++) {
+        stf_override ov[MAX_OV + 1];
+        int nov = 0;
+        for (int i = 0; i < a->nov; i++) ov[nov++] = a->ov[i];
+        char v[64];
+        double spk = k == 0 ? sp : sp / cbrt(10.0);
+        snprintf(v, sizeof v, "%.9g", spk);
+        ov[nov++] = (stf_override){"fluid.spacing", v};
+        timing t;
+        int rc = time_scene(a->scene, NULL, ov, nov, a->warmup, a->steps, &t);
+        if (rc) return rc;
+        if (k == 0) first = t.step_ms, n0 = t.particles;
+        printf("%12.5g %9d %10.2f %10.2f %14.3g %8.2f\n", spk, t.particles, t.step_ms, t.cpu_ms,
+               1e3 * t.particles / t.step_ms, t.step_ms / first);
+        fflush(stdout);
+    }
+    (void)n0;
+    printf("# x time: step time / the first row's (linear cost: the particle ratio)\n");
     return 0;
 }
 
@@ -739,6 +781,7 @@ int cli_bench(int argc, char **argv)
     if (a.threads) stf_set_threads(a.threads);
     if (!strcmp(a.what, "table1")) return bench_table1(&a);
     if (!strcmp(a.what, "effects")) return bench_effects(&a);
+    if (!strcmp(a.what, "scaling")) return bench_scaling(&a);
     char self[4096];
     ssize_t len = readlink("/proc/self/exe", self, sizeof self - 1);
     if (len <= 0) return bad("cannot find this executable", "/proc/self/exe");
