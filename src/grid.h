@@ -41,7 +41,8 @@ int grid_build(stf_grid *g, const double *x, int n, double h);
 /* 1 when the next grid_build will rebuild the candidates (a particle moved more than skin/2,
  * the count or h changed, or they were invalidated). */
 int grid_due(stf_grid *g, const double *x, int n, double h);
-/* Only the bucket sort (order): for re-sorting particles by cell. Invalidates. 0 / -1. */
+/* The particles' order along a Morton curve of cells of size h (into order): for re-sorting
+ * the particles. Invalidates. 0 / -1. */
 int grid_sort(stf_grid *g, const double *x, int n, double h);
 void grid_free(stf_grid *g);
 /* The particles were renumbered: the next grid_build rebuilds its candidates. */
