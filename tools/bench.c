@@ -518,12 +518,14 @@ static double path_error(const double *t, const double *p, int n, const double *
 }
 
 /* The largest difference of the length metrics (bounce height, roll distance), in m, and
- * of the time metrics (contact, sink, float) times the reference's impact speed scale 1 m/s
- * (so 10 ms counts as 1 cm). NaN on one side only counts as the other's value. */
+ * of the time metrics (contact, sink, float) times 1 m/s (so 10 ms counts as 1 cm), and a
+ * bounce more or less as 1 cm. NaN on one side only counts as the other's value. Without
+ * bodies: the fluid's rebound and finger height. */
 static double metric_error(const stf_metrics *m, const stf_metrics *r)
 {
-    if (m->nbodies < 1 || r->nbodies < 1)
-        return fabs(m->com_rebound_height - r->com_rebound_height);
+    if (m->nbodies < 1 || r->nbodies < 1) /* drop and vibration scenes */
+        return fmax(fabs(m->com_rebound_height - r->com_rebound_height),
+                    fabs(m->finger_height - r->finger_height));
     const stf_body_metrics *a = &m->bodies[0], *b = &r->bodies[0];
     double v[6][2] = {{a->max_rebound_height, b->max_rebound_height},
                       {a->roll_distance, b->roll_distance},
