@@ -7,7 +7,8 @@
 #  - accuracy --knobs history: writes the CSV (one row per setting) and a PNG; the reference
 #    (full history) has zero error; the sum-of-exponentials history with 16 terms is closer to
 #    the full history than a 10-step window is;
-#  - table1 refuses a missing scene with exit 2, and an unknown benchmark is exit 2.
+#  - table1 refuses a missing scene with exit 2, and an unknown benchmark is exit 2;
+#  - history.terms is refused (exit 2, key named) without mode soe and outside [1, 64].
 # usage: bash cli_bench.sh STF_BINARY PROJECT_DIR
 set -u
 STF=${1:?usage: cli_bench.sh STF_BINARY PROJECT_DIR}
@@ -49,4 +50,10 @@ grep -q "^cheapest history" acc.out || fail "bench accuracy names no cheapest se
 [ $? -eq 2 ] || fail "table1 with a missing scene: want exit 2"
 "$STF" bench nope >/dev/null 2>&1
 [ $? -eq 2 ] || fail "unknown benchmark: want exit 2"
+# the soe history's parameter: only with mode soe, and in [1, 64]
+"$STF" run "$SCENE" -o bad.h5 --set effects.history.terms=8 --duration 0.001 2>bad1.err
+[ $? -eq 2 ] && grep -q "effects.history.terms: only with mode: soe" bad1.err || fail "terms without soe"
+"$STF" run "$SCENE" -o bad.h5 --set effects.history.mode=soe --set effects.history.terms=0 --duration 0.001 2>bad2.err
+[ $? -eq 2 ] && grep -q "effects.history.terms" bad2.err || fail "terms = 0"
+[ ! -e bad.h5 ] || fail "a bad scene created its output file"
 exit $((fails > 0))
