@@ -30,6 +30,7 @@ stf_fluid_def stf_default_fluid_def(void)
     d.memory = 0.0;
     d.k_hist = 1000.0 * d.k_min; /* see README: the paper's 10 k_min in its units */
     d.history_mode = STF_HISTORY_WINDOW;
+    d.terms = 16;
     d.stick = 200.0;
     d.jitter = 0.2;
     return d;
@@ -84,8 +85,11 @@ static int check_def(const stf_fluid_def *d, char *err, size_t errlen)
     if (d->effects & STF_EFFECT_HISTORY) {
         if (!(d->effects & STF_EFFECT_SPRINGS)) FAIL("history: needs the springs effect");
         if (!(d->q > 0 && d->q < 1)) FAIL("q: must be in (0,1) (got %g)", d->q);
-        if (d->history_mode != STF_HISTORY_WINDOW && d->history_mode != STF_HISTORY_FULL)
-            FAIL("history_mode: must be window or full (got %d)", d->history_mode);
+        if (d->history_mode != STF_HISTORY_WINDOW && d->history_mode != STF_HISTORY_FULL &&
+            d->history_mode != STF_HISTORY_SOE)
+            FAIL("history_mode: must be window, full or soe (got %d)", d->history_mode);
+        if (d->history_mode == STF_HISTORY_SOE && !(d->terms >= 1 && d->terms <= 64))
+            FAIL("terms: must be in [1, 64] (got %d)", d->terms);
         if (d->history_mode == STF_HISTORY_WINDOW && d->memory <= 0 && d->d < 1)
             FAIL("d: must be >= 1 (got %d)", d->d);
         if (!(d->memory >= 0 && isfinite(d->memory))) FAIL("memory: must be >= 0 (got %g)", d->memory);
@@ -343,6 +347,7 @@ int fluid_permute(stf_fluid *f, const int32_t *perm)
         memcpy(f->khist_mean, k, (size_t)n * sizeof *k);
     }
     if (f->springs.n_alloc) springs_permute(&f->springs, perm, inv, n);
+    grid_invalidate(&f->grid); /* its candidate lists hold the old indices */
     int rc = f->hist.n_alloc ? history_permute(&f->hist, perm, n) : 0;
     free(inv);
     free(ids);
@@ -392,6 +397,8 @@ static int check(stf_fluid *f, const char *effect)
 
 static int start_history(stf_fluid *f, double dt)
 {
+    if (f->def.history_mode == STF_HISTORY_SOE)
+        return history_soe_init(&f->hist, f->def.q, f->def.terms, f->cap > 0 ? f->cap : 1);
     int window = 0;
     if (f->def.history_mode == STF_HISTORY_WINDOW)
         window = f->def.memory > 0 ? (int)lround(f->def.memory / dt) : f->def.d;
@@ -432,10 +439,14 @@ int stf_fluid_step(stf_fluid *f, double dt)
     }
     if (has(f, STF_EFFECT_HISTORY) && f->hist.w == NULL && start_history(f, dt) != 0) goto oom;
     TIMED(STAGE_GRID, {
-        if (grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
-        if (f->steps % f->reorder_interval == 0) {
-            if (reorder_by_cell(f) != 0 || grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
+        /* Particles are re-sorted by cell (memory locality) when the neighbour candidates
+           are rebuilt anyway, at most every reorder_interval steps: particles that stay put
+           stay in order and keep their candidate lists. */
+        if (grid_due(&f->grid, f->x, n, f->h) && f->steps >= f->next_reorder) {
+            if (grid_sort(&f->grid, f->x, n, f->h) != 0 || reorder_by_cell(f) != 0) goto oom;
+            f->next_reorder = f->steps + f->reorder_interval;
         }
+        if (grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
     });
     if (has(f, STF_EFFECT_HISTORY)) {
         TIMED(STAGE_HISTORY, {
@@ -548,7 +559,7 @@ int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
             strcat(effects, effects[0] ? ", " : "");
             strcat(effects, names[k]);
         }
-    return snprintf(
+    int w = snprintf(
         buf, len,
         "effects: [%s]\nspacing: %.9g  # m\nh: %.9g  # m\ndensity: %.9g  # kg/m^3\n"
         "particle_mass: %.9g  # kg\njitter: %.9g  # spacings\ngravity: [%.9g, %.9g, %.9g]  # m/s^2\n"
@@ -561,8 +572,14 @@ int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
         effects, d->spacing, f->h, d->density, f->mass, d->jitter, d->gravity[0], d->gravity[1],
         d->gravity[2], d->sigma, d->beta, d->k, d->k_near, d->tension ? "true" : "false",
         f->rest_density, f->rest_near, d->k_min, d->yield_ratio, d->plasticity, d->q,
-        d->history_mode == STF_HISTORY_FULL ? "full" : "window", stf_fluid_history_steps(f),
+        d->history_mode == STF_HISTORY_FULL  ? "full"
+        : d->history_mode == STF_HISTORY_SOE ? "soe"
+                                             : "window",
+        stf_fluid_history_steps(f),
         d->k_hist, d->reference_spacing, d->k_onset, d->stick);
+    if (d->history_mode == STF_HISTORY_SOE && w >= 0 && (size_t)w < len)
+        w += snprintf(buf + w, len - (size_t)w, "history_terms: %d  # exponentials\n", d->terms);
+    return w;
 }
 
 uint64_t stf_fluid_hash(const stf_fluid *f)

@@ -54,7 +54,8 @@ struct stf_fluid {
     double time;
     double dt_now;       /* length of the step being taken, s */
     long steps;
-    long reorder_interval; /* steps between re-sorting particles by cell */
+    long reorder_interval; /* least steps between re-sorting particles by cell */
+    long next_reorder;     /* re-sort at the first neighbour rebuild from this step on */
     double stage_seconds[STAGE_COUNT];
     char failure[256];
 };

@@ -5,6 +5,10 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* Verlet skin as a fraction of h: candidates within 1.25 h; rebuilt when a particle has moved
+ * h/8 (at impact speeds every few steps, at rest rarely). */
+#define SKIN 0.25
+
 static uint32_t cell_hash(int64_t ix, int64_t iy, int64_t iz)
 {
     /* Teschner et al. 2003 primes; unsigned arithmetic wraps by definition. */
@@ -26,11 +30,22 @@ static int ensure_particles(stf_grid *g, int n)
     int32_t *count = realloc(g->count, (size_t)cap * sizeof *count);
     if (!count) return -1;
     g->count = count;
-    if (g->stride == 0) g->stride = 48;
+    if (g->stride == 0) g->stride = 96;
     int32_t *nbr = realloc(g->nbr, (size_t)cap * (size_t)g->stride * sizeof *nbr);
     if (!nbr) return -1;
     g->nbr = nbr;
+    int32_t *ccount = realloc(g->ccount, (size_t)cap * sizeof *ccount);
+    if (!ccount) return -1;
+    g->ccount = ccount;
+    if (g->cstride == 0) g->cstride = 96;
+    int32_t *cand = realloc(g->cand, (size_t)cap * (size_t)g->cstride * sizeof *cand);
+    if (!cand) return -1;
+    g->cand = cand;
+    double *xref = realloc(g->xref, (size_t)cap * 3 * sizeof *xref);
+    if (!xref) return -1;
+    g->xref = xref;
     g->n_alloc = cap;
+    g->valid = 0;
     return 0;
 }
 
@@ -60,15 +75,17 @@ static int sort_by_bucket(stf_grid *g, const double *x, int n)
     return 0;
 }
 
-/* Fills particle i's neighbour list; returns how many it has (may exceed the stride). */
-static int find_neighbours(const stf_grid *g, const double *x, int i, double h2)
+/* Fills particle i's candidate list (r < sqrt(h2)) in cell-visit order; returns how many it
+ * has (may exceed the stride, then the list is incomplete). */
+static int find_candidates(const stf_grid *g, const double *x, int i, double h2)
 {
     double inv = 1.0 / g->cell;
     int64_t cx = cell_of(x[3 * i], inv), cy = cell_of(x[3 * i + 1], inv),
             cz = cell_of(x[3 * i + 2], inv);
     uint32_t seen[27];
     int nseen = 0, cnt = 0;
-    int32_t *out = g->nbr + (size_t)i * (size_t)g->stride;
+    int32_t *out = g->cand + (size_t)i * (size_t)g->cstride;
+    int last = g->cstride - 1;
     for (int dz = -1; dz <= 1; dz++)
         for (int dy = -1; dy <= 1; dy++)
             for (int dx = -1; dx <= 1; dx++) {
@@ -82,34 +99,150 @@ static int find_neighbours(const stf_grid *g, const double *x, int i, double h2)
                     if (j == i) continue;
                     double rx = x[3 * j] - x[3 * i], ry = x[3 * j + 1] - x[3 * i + 1],
                            rz = x[3 * j + 2] - x[3 * i + 2];
-                    if (rx * rx + ry * ry + rz * rz >= h2) continue;
-                    if (cnt < g->stride) out[cnt] = j;
-                    cnt++;
+                    /* branch-free append; past the stride the last slot is overwritten
+                       and the caller widens the lists and redoes them */
+                    out[cnt < last ? cnt : last] = j;
+                    cnt += rx * rx + ry * ry + rz * rz < h2;
                 }
             }
     return cnt;
 }
 
-int grid_build(stf_grid *g, const double *x, int n, double h)
+/* Candidate lists within h + skin, and the reference positions. */
+static int rebuild(stf_grid *g, const double *x, int n, double h)
 {
-    g->cell = h;
-    if (ensure_particles(g, n) != 0 || sort_by_bucket(g, x, n) != 0) return -1;
+    double rc = h * (1.0 + SKIN);
+    g->cell = rc;
+    if (sort_by_bucket(g, x, n) != 0) return -1;
     for (;;) {
         int most = 0;
 #pragma omp parallel for schedule(static) reduction(max : most)
         for (int i = 0; i < n; i++) {
-            g->count[i] = find_neighbours(g, x, i, h * h);
-            if (g->count[i] > most) most = g->count[i];
+            g->ccount[i] = find_candidates(g, x, i, rc * rc);
+            if (g->ccount[i] > most) most = g->ccount[i];
         }
-        if (most <= g->stride) return 0;
+        if (most <= g->cstride) break;
         /* Compressed regions: widen every list and redo (rare, deterministic). */
         int stride = most + most / 2;
-        int32_t *nbr = realloc(g->nbr, (size_t)g->n_alloc * (size_t)stride * sizeof *nbr);
+        int32_t *cand = realloc(g->cand, (size_t)g->n_alloc * (size_t)stride * sizeof *cand);
+        if (!cand) return -1;
+        g->cand = cand;
+        g->cstride = stride;
+    }
+    memcpy(g->xref, x, (size_t)n * 3 * sizeof *x);
+    g->nref = n;
+    g->href = h;
+    g->valid = 1;
+    g->rebuilds++;
+    return 0;
+}
+
+/* Largest squared displacement since the last rebuild (max is exact: thread-independent). */
+static double max_moved2(const stf_grid *g, const double *x, int n)
+{
+    double most = 0;
+#pragma omp parallel for schedule(static) reduction(max : most)
+    for (int i = 0; i < n; i++) {
+        double dx = x[3 * i] - g->xref[3 * i], dy = x[3 * i + 1] - g->xref[3 * i + 1],
+               dz = x[3 * i + 2] - g->xref[3 * i + 2];
+        double d2 = dx * dx + dy * dy + dz * dz;
+        if (d2 > most) most = d2;
+    }
+    return most;
+}
+
+/* Particle i's neighbours within h: its candidates filtered, in their order (the neighbour
+ * stride is kept >= the candidate stride, so every candidate has a slot). */
+static int filter_one(stf_grid *g, const double *x, int i, double h2)
+{
+    const int32_t *c = g->cand + (size_t)i * (size_t)g->cstride;
+    int32_t *out = g->nbr + (size_t)i * (size_t)g->stride;
+    int cnt = 0;
+    for (int k = 0; k < g->ccount[i]; k++) {
+        int j = c[k];
+        double rx = x[3 * j] - x[3 * i], ry = x[3 * j + 1] - x[3 * i + 1],
+               rz = x[3 * j + 2] - x[3 * i + 2];
+        out[cnt] = j; /* branch-free: half the candidates are kept, unpredictably */
+        cnt += rx * rx + ry * ry + rz * rz < h2;
+    }
+    return cnt;
+}
+
+int grid_due(stf_grid *g, const double *x, int n, double h)
+{
+    double skin = SKIN * h;
+    if (g->valid && (n != g->nref || h != g->href || 4.0 * max_moved2(g, x, n) > skin * skin))
+        g->valid = 0;
+    return !g->valid;
+}
+
+/* Spreads the low 21 bits of v to every third bit (Morton interleave). */
+static uint64_t spread3(uint64_t v)
+{
+    v &= 0x1fffff;
+    v = (v | v << 32) & 0x1f00000000ffffull;
+    v = (v | v << 16) & 0x1f0000ff0000ffull;
+    v = (v | v << 8) & 0x100f00f00f00f00full;
+    v = (v | v << 4) & 0x10c30c30c30c30c3ull;
+    v = (v | v << 2) & 0x1249249249249249ull;
+    return v;
+}
+
+typedef struct morton_item {
+    uint64_t key;
+    int32_t i;
+} morton_item;
+
+static int morton_cmp(const void *a, const void *b)
+{
+    const morton_item *p = a, *q = b;
+    if (p->key != q->key) return p->key < q->key ? -1 : 1;
+    return (p->i > q->i) - (p->i < q->i); /* a total order: deterministic */
+}
+
+/* Particles in Morton (Z-curve) order of their cells of size h: neighbours in all three
+ * directions are near in memory (the bucket order of the hash scatters them), which keeps
+ * the neighbour loops in cache at large particle counts. */
+int grid_sort(stf_grid *g, const double *x, int n, double h)
+{
+    if (ensure_particles(g, n) != 0) return -1;
+    g->valid = 0;
+    if (n == 0) return 0;
+    morton_item *it = malloc((size_t)n * sizeof *it);
+    if (!it) return -1;
+    double inv = 1.0 / h, lo[3] = {INFINITY, INFINITY, INFINITY};
+    for (int i = 0; i < n; i++)
+        for (int a = 0; a < 3; a++) lo[a] = fmin(lo[a], x[3 * i + a]);
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++) {
+        uint64_t c[3];
+        for (int a = 0; a < 3; a++) {
+            double u = floor((x[3 * i + a] - lo[a]) * inv);
+            c[a] = u < 0 ? 0 : u > 0x1fffff ? 0x1fffff : (uint64_t)u;
+        }
+        it[i].key = spread3(c[0]) | spread3(c[1]) << 1 | spread3(c[2]) << 2;
+        it[i].i = i;
+    }
+    qsort(it, (size_t)n, sizeof *it, morton_cmp);
+    for (int i = 0; i < n; i++) g->order[i] = it[i].i;
+    free(it);
+    return 0;
+}
+
+int grid_build(stf_grid *g, const double *x, int n, double h)
+{
+    if (ensure_particles(g, n) != 0) return -1;
+    g->builds++;
+    if (grid_due(g, x, n, h) && rebuild(g, x, n, h) != 0) return -1;
+    if (g->stride < g->cstride) {
+        int32_t *nbr = realloc(g->nbr, (size_t)g->n_alloc * (size_t)g->cstride * sizeof *nbr);
         if (!nbr) return -1;
         g->nbr = nbr;
-        g->stride = stride;
+        g->stride = g->cstride;
     }
-}
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++) g->count[i] = filter_one(g, x, i, h * h);
+    return 0;}
 
 void grid_free(stf_grid *g)
 {
@@ -118,12 +251,15 @@ void grid_free(stf_grid *g)
     free(g->start);
     free(g->nbr);
     free(g->count);
+    free(g->cand);
+    free(g->ccount);
+    free(g->xref);
     memset(g, 0, sizeof *g);
 }
 
 size_t grid_bytes(const stf_grid *g)
 {
-    return (size_t)g->n_alloc * (sizeof(uint32_t) + 2 * sizeof(int32_t) +
-                                 (size_t)g->stride * sizeof(int32_t)) +
+    return (size_t)g->n_alloc * (sizeof(uint32_t) + 3 * sizeof(int32_t) + 3 * sizeof(double) +
+                                 (size_t)(g->stride + g->cstride) * sizeof(int32_t)) +
            ((size_t)g->nbuckets_alloc + 1) * sizeof(int32_t);
 }

@@ -1,8 +1,12 @@
 /* grid.h - uniform-grid neighbour search (Teschner et al. spatial hashing).
  *
- * Cells of size h are hashed into a power-of-two table; particles are counting-sorted by
- * bucket. Each particle then gets the list of its neighbours (r < h) in a fixed-stride table,
- * built in parallel with no shared writes, so the lists do not depend on the thread count. */
+ * Cells of size h + skin are hashed into a power-of-two table; particles are counting-sorted
+ * by bucket. Each particle gets a candidate list (r < h + skin) in a fixed-stride table,
+ * rebuilt only when some particle has moved more than skin/2 since the last rebuild (Verlet
+ * lists), or when the particles were reordered. Every step the candidates are filtered to the
+ * neighbours within h. The rebuilds depend on the positions only and the lists are built in
+ * parallel with no shared writes, so the lists (and the order of every sum over them) do not
+ * depend on the thread count. */
 #ifndef STF_GRID_H
 #define STF_GRID_H
 
@@ -20,12 +24,29 @@ typedef struct stf_grid {
     int stride;        /* capacity per particle; grows when a particle has more */
     int n_alloc;       /* particles the arrays hold */
     uint32_t nbuckets_alloc;
+    /* Verlet candidates */
+    int32_t *cand;     /* n * cstride: candidate indices (r < h + skin at the rebuild) */
+    int32_t *ccount;   /* n: candidates of each particle */
+    int cstride;
+    double *xref;      /* 3n: positions at the last rebuild */
+    int nref;          /* particle count at the last rebuild */
+    double href;       /* h at the last rebuild, m */
+    int valid;         /* 0: rebuild the candidates at the next grid_build (set on reorder) */
+    long rebuilds, builds; /* statistics */
 } stf_grid;
 
 /* Rebuilds buckets and neighbour lists for n particles at x (3n) with radius h.
  * Returns 0, or -1 when out of memory. */
 int grid_build(stf_grid *g, const double *x, int n, double h);
+/* 1 when the next grid_build will rebuild the candidates (a particle moved more than skin/2,
+ * the count or h changed, or they were invalidated). */
+int grid_due(stf_grid *g, const double *x, int n, double h);
+/* The particles' order along a Morton curve of cells of size h (into order): for re-sorting
+ * the particles. Invalidates. 0 / -1. */
+int grid_sort(stf_grid *g, const double *x, int n, double h);
 void grid_free(stf_grid *g);
+/* The particles were renumbered: the next grid_build rebuilds its candidates. */
+static inline void grid_invalidate(stf_grid *g) { g->valid = 0; }
 size_t grid_bytes(const stf_grid *g);
 
 #endif

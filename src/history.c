@@ -44,6 +44,10 @@ int history_init(stf_history *h, double q, int window, int n)
 
 void history_free(stf_history *h)
 {
+    free(h->soe_r);
+    free(h->soe_c);
+    free(h->soe_T);
+    free(h->soe_v0);
     free(h->ring);
     free(h->w);
     free(h->D);
@@ -52,6 +56,7 @@ void history_free(stf_history *h)
 
 int history_resize(stf_history *h, int n)
 {
+    if (h->terms) return history_soe_resize(h, n);
     if (n <= h->n_alloc) return 0;
     int cap = n + n / 4 + 16;
     size_t row = (size_t)h->cap * 3;
@@ -96,6 +101,10 @@ static int grow_slots(stf_history *h)
 
 int history_push(stf_history *h, const double *v, int n)
 {
+    if (h->terms) {
+        history_soe_push(h, v, n);
+        return 0;
+    }
     if (h->window == 0 && h->pushed >= h->cap && grow_slots(h) != 0) return -1;
     h->head = (h->head + 1) % h->cap;
     h->pushed++;
@@ -113,6 +122,7 @@ int history_push(stf_history *h, const double *v, int n)
 
 void history_derivative(stf_history *h, int n)
 {
+    if (h->terms) return; /* the soe push computed D */
     /* m = the oldest lag present. While fewer than cap samples exist, the oldest one is p = 0
      * of Eq. 3 and takes the end-point weight a_{0,n}. */
     long last = h->pushed - 1;
@@ -146,6 +156,7 @@ void history_derivative(stf_history *h, int n)
 
 int history_permute(stf_history *h, const int *perm, int n)
 {
+    if (h->terms) return history_soe_permute(h, perm, n);
     size_t row = (size_t)h->cap * 3;
     float *ring = malloc((size_t)h->n_alloc * row * sizeof *ring);
     if (!ring) return -1;
@@ -160,6 +171,7 @@ int history_permute(stf_history *h, const int *perm, int n)
 
 size_t history_bytes(const stf_history *h)
 {
+    if (h->terms) return history_soe_bytes(h);
     return (size_t)h->n_alloc * ((size_t)h->cap * 3 * sizeof(float) + 3 * sizeof(double)) +
            (size_t)h->cap * sizeof(double);
 }

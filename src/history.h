@@ -18,6 +18,12 @@ typedef struct stf_history {
     int head;     /* slot of the newest sample */
     double *w;    /* cap interior weights by lag: w[0] = 1, w[k] = a_{n-k,n} for 0 < k < n */
     double *D;    /* 3 n: sum_p a_{p,n} v_p (m/s), without the dt^(1-q)/Gamma(3-q) factor */
+    /* sum-of-exponentials mode (history_soe.c); terms == 0 for the exact ring */
+    int terms;      /* K exponentials */
+    double *soe_r;  /* K decay factors per step, exp(-lambda_j) */
+    double *soe_c;  /* K weights c_j */
+    double *soe_T;  /* n_alloc * K * 3: the running sums T_j */
+    double *soe_v0; /* 3 n_alloc: the first sample (end-point weight a_{0,n}) */
 } stf_history;
 
 /* window = d steps (>= 1), or 0 for full history. Returns 0, -1 when out of memory. */
@@ -34,5 +40,14 @@ double history_scale(double q, double dt);
 /* Reorders particles: new index i takes old index perm[i]. */
 int history_permute(stf_history *h, const int *perm, int n);
 size_t history_bytes(const stf_history *h);
+
+/* history_soe.c: Eq. 3 over the full history with the interior weights fitted by `terms`
+ * exponentials (O(terms) time and memory per particle, whatever the history length). */
+int history_soe_init(stf_history *h, double q, int terms, int n);
+int history_soe_fit(double q, int K, double *r, double *c); /* w_k ~ sum c_j r_j^(k-1) */
+int history_soe_resize(stf_history *h, int n);
+void history_soe_push(stf_history *h, const double *v, int n); /* also computes D */
+int history_soe_permute(stf_history *h, const int *perm, int n);
+size_t history_soe_bytes(const stf_history *h);
 
 #endif

@@ -459,9 +459,9 @@ static int parse_fluid(loader *L, const mapv *top)
 
 static int parse_history(loader *L, const mapv *h)
 {
-    static const char *const modes[] = {"window", "full", NULL};
+    static const char *const modes[] = {"window", "full", "soe", NULL};
     stf_fluid_def *f = &L->s->fluid;
-    long d = 1;
+    long d = 1, terms = 16;
     int mode = 0, rd, rm;
     if (get_num(L, h, "q", R_OPEN_UNIT, &f->q) < 0) return SCENE_BAD;
     if ((rd = get_int(L, h, "d", 1, 100000, &d)) < 0) return SCENE_BAD;
@@ -475,7 +475,12 @@ static int parse_history(loader *L, const mapv *h)
     if (get_num(L, h, "reference_spacing", R_NONNEG, &f->reference_spacing) < 0) return SCENE_BAD;
     if (get_num(L, h, "k_onset", R_NONNEG, &f->k_onset) < 0) return SCENE_BAD;
     if (get_choice(L, h, "mode", modes, &mode) < 0) return SCENE_BAD;
-    if (has(h, "mode")) f->history_mode = mode ? STF_HISTORY_FULL : STF_HISTORY_WINDOW;
+    if (has(h, "mode")) f->history_mode = mode; /* the order of enum stf_history_mode */
+    int rt = get_int(L, h, "terms", 1, 64, &terms);
+    if (rt < 0) return SCENE_BAD;
+    if (rt && f->history_mode != STF_HISTORY_SOE)
+        return fail_key(L, h, "terms", "only with mode: soe");
+    if (rt) f->terms = (int)terms;
     return 0;
 }
 
@@ -509,7 +514,7 @@ static const char *const gravity_keys[] = {"g", NULL};
 static const char *const viscosity_keys[] = {"sigma", "beta", NULL};
 static const char *const pressure_keys[] = {"k", "k_near", "rest_density", "tension", NULL};
 static const char *const springs_keys[] = {"k_min", "yield_ratio", "plasticity", NULL};
-static const char *const history_keys[] = {"q", "d", "memory", "k_hist", "mode", "reference_spacing", "k_onset", NULL};
+static const char *const history_keys[] = {"q", "d", "memory", "k_hist", "mode", "reference_spacing", "terms", "k_onset", NULL};
 static const char *const stick_keys[] = {"stick", NULL};
 
 static int parse_effects(loader *L, const mapv *top)

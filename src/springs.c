@@ -97,18 +97,48 @@ static int widen(stf_springs *s, int n, int stride)
 static double plastic_rest(double L, double r, double gamma, double alpha, double dt)
 {
     double tol = gamma * L;
-    if (r > L + tol) return L + dt * alpha * (r - L - tol);
-    if (r < L - tol) return L - dt * alpha * (L - tol - r);
-    return L;
+    /* Branch-free (stretched or compressed is a coin toss with yield_ratio 0): the branch
+       not taken adds (dt alpha) * +-0, which leaves L's bits as they are (L > 0). Same values
+       as: r > L + tol ? L + dt alpha (r - L - tol) : r < L - tol ? L - dt alpha (L - tol - r) : L */
+    double up = (double)(r > L + tol) * (r - L - tol);
+    double down = (double)(r < L - tol) * (L - tol - r);
+    return L + dt * alpha * up - dt * alpha * down;
 }
 
-/* Rebuilds particle i's spring list into the second buffer; returns its new count (may
- * exceed the stride, then nothing past the stride was written). */
-static int adjust_one(stf_fluid *f, int i, int64_t stamp, int64_t *mark)
+/* Alg. 3 with Eq. 6 for one spring of particle i (to j at r = (rx, ry, rz), |r| = r, rest
+ * length L): adds -D/2 to d and the history stiffness to *ksum. */
+static inline void push_one(const stf_fluid *f, int i, int j, double rx, double ry, double rz,
+                            double r, double L, double dt, double khist_scale, double d[3],
+                            double *ksum)
+{
+    const double *D = f->hist.D;
+    double h = f->h;
+    if (r <= 1e-12 * h) return; /* coincident: no direction to push along */
+    double kij = f->def.k_min;
+    if (khist_scale > 0) {
+        double ex = D[3 * i] - D[3 * j], ey = D[3 * i + 1] - D[3 * j + 1],
+               ez = D[3 * i + 2] - D[3 * j + 2];
+        double kh = khist_scale * sqrt(ex * ex + ey * ey + ez * ez); /* Eq. 6 */
+        kh = kh > f->def.k_onset ? kh - f->def.k_onset : 0.0; /* thickening starts at the onset */
+        kij += kh;
+        *ksum += kh;
+    }
+    double mag = 0.5 * dt * dt * kij * (1.0 - L / h) * (L - r) / r;
+    d[0] -= mag * rx;
+    d[1] -= mag * ry;
+    d[2] -= mag * rz;
+}
+
+/* Rebuilds particle i's spring list into the second buffer (Alg. 4) and, in the same pass
+ * over the same distances, gathers the displacements of its new springs into f->dx (Alg. 3:
+ * the order of the sums is that of the new list). Returns its new count (may exceed the
+ * stride, then nothing past the stride was written and the caller redoes the pass). */
+static int adjust_one(stf_fluid *f, int i, int64_t stamp, int64_t *mark, double dt,
+                      double khist_scale)
 {
     stf_springs *s = &f->springs;
     const double *x = f->x;
-    double h = f->h;
+    double h = f->h, d[3] = {0, 0, 0}, ksum = 0;
     const int32_t *op = s->partner + (size_t)i * s->stride;
     const double *oL = s->rest + (size_t)i * s->stride;
     int32_t *np = s->partner2 + (size_t)i * s->stride;
@@ -127,6 +157,7 @@ static int adjust_one(stf_fluid *f, int i, int64_t stamp, int64_t *mark)
             nL[cnt] = L;
         }
         cnt++;
+        push_one(f, i, j, rx, ry, rz, r, L, dt, khist_scale, d, &ksum);
     }
     const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
     for (int k = 0; k < f->grid.count[i]; k++) {
@@ -136,51 +167,18 @@ static int adjust_one(stf_fluid *f, int i, int64_t stamp, int64_t *mark)
                rz = x[3 * j + 2] - x[3 * i + 2];
         double r = sqrt(rx * rx + ry * ry + rz * rz);
         if (r >= h) continue;
-        /* A new spring starts at its current length, so it carries no force on creation. */
+        /* A new spring starts at its current length, so it carries no force on creation
+           (push_one adds mag = 0, and its history stiffness to the mean). */
         if (cnt < s->stride) {
             np[cnt] = j;
             nL[cnt] = r;
         }
         cnt++;
+        push_one(f, i, j, rx, ry, rz, r, r, dt, khist_scale, d, &ksum);
     }
+    for (int a = 0; a < 3; a++) f->dx[3 * i + a] = d[a];
+    if (f->khist_mean) f->khist_mean[i] = cnt > 0 ? (float)(ksum / cnt) : 0.0f;
     return cnt;
-}
-
-/* Alg. 3 with Eq. 6 for particle i: gathers -D/2 of each of its springs into f->dx. */
-static void displace_one(stf_fluid *f, int i, double dt, double khist_scale)
-{
-    const double k_onset = f->def.k_onset;
-    const stf_springs *s = &f->springs;
-    const double *x = f->x, *D = f->hist.D;
-    double h = f->h, dx = 0, dy = 0, dz = 0, ksum = 0;
-    int n = s->count[i];
-    const int32_t *p = s->partner + (size_t)i * s->stride;
-    const double *Ls = s->rest + (size_t)i * s->stride;
-    for (int k = 0; k < n; k++) {
-        int j = p[k];
-        double rx = x[3 * j] - x[3 * i], ry = x[3 * j + 1] - x[3 * i + 1],
-               rz = x[3 * j + 2] - x[3 * i + 2];
-        double r = sqrt(rx * rx + ry * ry + rz * rz);
-        if (r <= 1e-12 * h) continue; /* coincident: no direction to push along */
-        double kij = f->def.k_min;
-        if (khist_scale > 0) {
-            double ex = D[3 * i] - D[3 * j], ey = D[3 * i + 1] - D[3 * j + 1],
-                   ez = D[3 * i + 2] - D[3 * j + 2];
-            double kh = khist_scale * sqrt(ex * ex + ey * ey + ez * ez); /* Eq. 6 */
-            kh = kh > k_onset ? kh - k_onset : 0.0; /* thickening starts at the onset */
-            kij += kh;
-            ksum += kh;
-        }
-        double L = Ls[k];
-        double mag = 0.5 * dt * dt * kij * (1.0 - L / h) * (L - r) / r;
-        dx -= mag * rx;
-        dy -= mag * ry;
-        dz -= mag * rz;
-    }
-    f->dx[3 * i] = dx;
-    f->dx[3 * i + 1] = dy;
-    f->dx[3 * i + 2] = dz;
-    if (f->khist_mean) f->khist_mean[i] = n > 0 ? (float)(ksum / n) : 0.0f;
 }
 
 int springs_step(stf_fluid *f, double dt)
@@ -194,6 +192,10 @@ int springs_step(stf_fluid *f, double dt)
         s->nthreads = omp_get_max_threads();
         for (size_t k = 0; k < (size_t)s->n_alloc * (size_t)s->nthreads; k++) s->mark[k] = -1;
     }
+    double khist_scale = has(f, STF_EFFECT_HISTORY)
+                             ? f->def.k_hist * history_scale(f->def.q, dt)
+                             : 0.0;
+    if (f->def.reference_spacing > 0) khist_scale *= f->def.reference_spacing / f->def.spacing;
     for (;;) {
         int most = 0;
         int64_t base = (int64_t)f->steps * (int64_t)s->n_alloc;
@@ -202,7 +204,7 @@ int springs_step(stf_fluid *f, double dt)
             int64_t *mark = s->mark + (size_t)omp_get_thread_num() * (size_t)s->n_alloc;
 #pragma omp for schedule(static)
             for (int i = 0; i < n; i++) {
-                s->count2[i] = adjust_one(f, i, base + i, mark);
+                s->count2[i] = adjust_one(f, i, base + i, mark, dt, khist_scale);
                 if (s->count2[i] > most) most = s->count2[i];
             }
         }
@@ -213,13 +215,6 @@ int springs_step(stf_fluid *f, double dt)
     double *tr = s->rest;
     s->partner = s->partner2, s->count = s->count2, s->rest = s->rest2;
     s->partner2 = tp, s->count2 = tc, s->rest2 = tr;
-
-    double khist_scale = has(f, STF_EFFECT_HISTORY)
-                             ? f->def.k_hist * history_scale(f->def.q, dt)
-                             : 0.0;
-    if (f->def.reference_spacing > 0) khist_scale *= f->def.reference_spacing / f->def.spacing;
-#pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) displace_one(f, i, dt, khist_scale);
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < 3 * n; i++) f->x[i] += f->dx[i];
     return 0;

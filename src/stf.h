@@ -41,6 +41,8 @@ enum stf_effect {
 enum stf_history_mode {
     STF_HISTORY_WINDOW = 0, /* exact Eq. 3 over the last d steps (12 n d bytes) */
     STF_HISTORY_FULL = 1,   /* exact Eq. 3 over every past step (memory grows with steps) */
+    STF_HISTORY_SOE = 2,    /* Eq. 3 over every past step, weights fitted by `terms`
+                               exponentials: O(terms) time and memory per particle */
 };
 
 typedef struct stf_fluid_def {
@@ -82,6 +84,7 @@ typedef struct stf_fluid_def {
                               nothing; above it only the excess counts:
                               k = k_min + max(0, kh - k_onset). 0: Eq. 6 as written */
     int history_mode;      /* enum stf_history_mode */
+    int terms;             /* soe mode: number of exponentials K, 1..64 (default 16) */
     /* boundary treatment (section 3.3) */
     double stick;          /* 1/s: tangential velocity at a wall decays at the rate
                               stick * kh / (k_min + kh), kh = mean history stiffness (>= 0) */

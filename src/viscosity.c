@@ -11,7 +11,7 @@
 static void gather_one(stf_fluid *f, int i, double dt)
 {
     const double *x = f->x, *v = f->v;
-    double h = f->h, sigma = f->def.sigma, beta = f->def.beta;
+    double h = f->h, sigma = f->def.sigma, beta = f->def.beta, tiny = 1e-12 * h;
     double ax = 0, ay = 0, az = 0;
     const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
     for (int k = 0; k < f->grid.count[i]; k++) {
@@ -19,13 +19,16 @@ static void gather_one(stf_fluid *f, int i, double dt)
         double rx = x[3 * j] - x[3 * i], ry = x[3 * j + 1] - x[3 * i + 1],
                rz = x[3 * j + 2] - x[3 * i + 2];
         double r = sqrt(rx * rx + ry * ry + rz * rz);
-        if (r >= h || r <= 1e-12 * h) continue;
+        /* Branch-free (about half the pairs separate, unpredictably): every pair is computed
+           (with r kept off 0) and a skipped one adds I = +-0, which leaves the sums' bits as
+           they were (they are never -0). */
+        double rs = r > tiny ? r : tiny;
         double q = r / h;
         /* u: how fast i and j approach each other along their line */
         double u = ((v[3 * i] - v[3 * j]) * rx + (v[3 * i + 1] - v[3 * j + 1]) * ry +
-                    (v[3 * i + 2] - v[3 * j + 2]) * rz) / r;
-        if (u <= 0) continue;
-        double I = 0.5 * dt * (1.0 - q) * (sigma * u + beta * u * u) / r;
+                    (v[3 * i + 2] - v[3 * j + 2]) * rz) / rs;
+        double I = 0.5 * dt * (1.0 - q) * (sigma * u + beta * u * u) / rs;
+        I *= (double)((u > 0) & (r < h) & (r > tiny));
         ax -= I * rx;
         ay -= I * ry;
         az -= I * rz;

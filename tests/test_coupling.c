@@ -235,9 +235,11 @@ static void test_resting_sphere(void)
                         (e[2] - start[2]) * (e[2] - start[2]));
     printf("resting sphere: drift %.3g m over 1.4 s, max speed %.3g m/s then %.3g m/s\n", drift,
            vmax_early, vmax_late);
-    /* measured 2.4 mm (0.19 spacing) from 0.6 to 2 s: a slow roll at about 6 mm/s that
-       does not grow */
-    CHECK(drift < 0.25 * spacing, "the sphere drifted %g m", drift);
+    /* measured 2.4 to 3.5 mm (0.19 to 0.28 spacing) from 0.6 to 2 s: a slow roll at about
+       6 mm/s that does not grow. The drift is lattice noise and moves with the order of the
+       floating-point sums: re-sorting the same particles along Morton curves of four cell
+       sizes gave 2.5, 2.5, 3.4 and 3.5 mm. A sphere that slid or rolled away would go cm. */
+    CHECK(drift < 0.35 * spacing, "the sphere drifted %g m", drift);
     /* The pool still sloshes gently after it settles around the ball (about 5 mm/s); an
        instability would grow, so the late speed may not exceed the early one by half. */
     CHECK(vmax_late <= fmax(1.5 * vmax_early, 1e-3), "jitter grows: %g m/s after %g m/s",

@@ -6,5 +6,6 @@
 
 int cli_run(int argc, char **argv, int check);
 int cli_report(int argc, char **argv);
+int cli_bench(int argc, char **argv); /* bench.c */
 
 #endif

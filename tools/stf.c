@@ -26,6 +26,10 @@ static void usage(FILE *to)
           "  stf plot OUT.h5 [-o FILE.png] [--body NAME]\n"
           "  stf history [--fig 2|3|4|all] [-o DIR] [--q 0.2,0.5,0.8] [--d 50,150,500] [--dt S]\n"
           "              [--k-hist K] [--profile FILE.csv]   (paper Fig. 2-4)\n"
+          "  stf bench table1 [BOWLING.yaml] | effects SCENE | scaling SCENE | accuracy SCENE [-o DIR]\n"
+          "            [--error M] [--knobs dt,spacing,history] [--steps N] [--warmup N] [--duration S]\n"
+          "            [--full] [--threads N]\n"
+          "            [--set KEY=VALUE]... [--unset KEY]...   (cost of accuracy, paper Table 1)\n"
           "exit codes: 0 ok, 1 expectation failed, 2 bad input, 3 numerical failure, "
           "130 interrupted\n",
           to);
@@ -44,11 +48,12 @@ int main(int argc, char **argv)
     if (!strcmp(cmd, "render")) return cli_render(argc - 2, argv + 2);
     if (!strcmp(cmd, "plot")) return cli_plot(argc - 2, argv + 2);
     if (!strcmp(cmd, "history")) return cli_history(argc - 2, argv + 2);
+    if (!strcmp(cmd, "bench")) return cli_bench(argc - 2, argv + 2);
     if (!strcmp(cmd, "--version")) {
         printf("stf %s\n", STF_VERSION);
         return 0;
     }
-    fprintf(stderr, "stf: unknown command '%s' (allowed: run, check, report, render, plot, history)\n", cmd);
+    fprintf(stderr, "stf: unknown command '%s' (allowed: run, check, report, render, plot, history, bench)\n", cmd);
     usage(stderr);
     return 2;
 }

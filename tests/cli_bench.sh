@@ -1,0 +1,59 @@
+#!/usr/bin/env bash
+# cli_bench.sh - `stf bench` end to end on the bowling ball at a coarse spacing (about 1.1K
+# particles, a few steps), so it checks behaviour, never speed (speed targets are in the
+# benchmark's own output, not in tests):
+#  - effects: every effect of the scene turned off in turn; an effect that is off costs no
+#    stage time and no storage (the command itself fails otherwise), and the rows are there;
+#  - accuracy --knobs history: writes the CSV (one row per setting) and a PNG; the reference
+#    (full history) has zero error; the sum-of-exponentials history with 16 terms is closer to
+#    the full history than a 10-step window is;
+#  - table1 refuses a missing scene with exit 2, and an unknown benchmark is exit 2;
+#  - history.terms is refused (exit 2, key named) without mode soe and outside [1, 64].
+# usage: bash cli_bench.sh STF_BINARY PROJECT_DIR
+set -u
+STF=${1:?usage: cli_bench.sh STF_BINARY PROJECT_DIR}
+PROJ=${2:?usage: cli_bench.sh STF_BINARY PROJECT_DIR}
+SCENE="$PROJ/scenes/bowling_ball.yaml"
+WORK=$(mktemp -d "${PWD}/cli_bench.XXXXXX") || exit 1
+trap 'rm -rf "$WORK"' EXIT
+cd "$WORK" || exit 1
+fails=0
+fail() { echo "cli_bench: FAIL: $*" >&2; fails=$((fails + 1)); }
+export OMP_NUM_THREADS=1
+
+"$STF" bench effects "$SCENE" --set fluid.spacing=0.04 --steps 3 --threads 1 >effects.out 2>effects.err \
+    || { fail "bench effects exited $?"; cat effects.err >&2; }
+for row in "all (scene)" "no gravity" "no viscosity" "no pressure" "no springs+history" "no history" \
+           "no boundary_stick"; do
+    grep -q "^$row " effects.out || fail "bench effects: no row '$row'"
+done
+# the history column (6th stage) of the 'no history' row is exactly 0
+awk '/^no history /{ for (i = 1; i <= NF; i++) if ($i == "|") { print $(i + 5); exit } }' effects.out \
+    | grep -qx "0.000" || fail "bench effects: history stage time not 0 with history off"
+
+"$STF" bench accuracy "$SCENE" --set fluid.spacing=0.04 --duration 0.08 --knobs history --threads 1 \
+    -o acc >acc.out 2>acc.err || { fail "bench accuracy exited $?"; cat acc.err >&2; }
+[ -s acc/accuracy.csv ] || fail "no accuracy.csv"
+[ "$(wc -l <acc/accuracy.csv)" -eq 9 ] || fail "accuracy.csv: want a header and 8 rows, got $(wc -l <acc/accuracy.csv) lines"
+head -c 8 acc/accuracy.png | od -An -tx1 | tr -d ' \n' | grep -q '^89504e470d0a1a0a$' || fail "accuracy.png is not a PNG"
+/usr/bin/python3 - acc/accuracy.csv <<'PY' || fail "accuracy.csv errors"
+import csv, sys
+rows = {r["setting"]: r for r in csv.DictReader(open(sys.argv[1]))}
+err = lambda s: float(rows[s]["err_body_path_m"])
+assert err("full") == 0.0, rows["full"]
+assert err("soe K=16") < err("window d=10"), (err("soe K=16"), err("window d=10"))
+assert all(float(r["cpu_s"]) > 0 for r in rows.values())
+PY
+grep -q "^cheapest history" acc.out || fail "bench accuracy names no cheapest setting"
+
+"$STF" bench table1 "$WORK/missing.yaml" --steps 1 >/dev/null 2>t1.err
+[ $? -eq 2 ] || fail "table1 with a missing scene: want exit 2"
+"$STF" bench nope >/dev/null 2>&1
+[ $? -eq 2 ] || fail "unknown benchmark: want exit 2"
+# the soe history's parameter: only with mode soe, and in [1, 64]
+"$STF" run "$SCENE" -o bad.h5 --set effects.history.terms=8 --duration 0.001 2>bad1.err
+[ $? -eq 2 ] && grep -q "effects.history.terms: only with mode: soe" bad1.err || fail "terms without soe"
+"$STF" run "$SCENE" -o bad.h5 --set effects.history.mode=soe --set effects.history.terms=0 --duration 0.001 2>bad2.err
+[ $? -eq 2 ] && grep -q "effects.history.terms" bad2.err || fail "terms = 0"
+[ ! -e bad.h5 ] || fail "a bad scene created its output file"
+exit $((fails > 0))

@@ -1,0 +1,792 @@
+/* bench.c - `stf bench`: what accuracy costs in time (issue 5).
+ *
+ *   stf bench table1 [BOWLING.yaml]   the paper's Table 1 (time per step without history, time
+ *                                      of the history terms, history memory, d = 0/50/150/500)
+ *                                      on the bowling ball and a vibrated layer, ~20K particles
+ *   stf bench effects SCENE           cost of each effect, turning them off one at a time
+ *   stf bench accuracy SCENE          error vs wall time for dt, spacing and the history mode
+ *
+ * Timings run the simulation in this process (no output file); the accuracy runs are
+ * ordinary `stf run` child processes of this executable, whose output files are read back
+ * for the metrics and the body / fluid centre-of-mass paths. Short by default: --full runs
+ * the long versions. */
+#define _DEFAULT_SOURCE /* getloadavg, readlink */
+#include <errno.h>
+#include <math.h>
+#include <omp.h>
+#include <spawn.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "canvas.h"
+#include "cli.h"
+#include "fluid.h" /* the per-stage timers (internal; the tool is part of the project) */
+#include "h5io.h"
+#include "metrics.h"
+#include "stf_sim.h"
+
+extern char **environ;
+
+#define MAX_OV 64
+
+typedef struct bench_args {
+    const char *what;  /* table1, effects, accuracy */
+    const char *scene; /* scene file (table1: the bowling scene) */
+    const char *out;   /* accuracy: output directory */
+    stf_override ov[MAX_OV];
+    int nov;
+    int threads;       /* 0: OpenMP default */
+    int steps;         /* timed steps (table1, effects) */
+    int warmup;        /* steps run before timing (table1, effects) */
+    int full, warmup_set;
+    double duration;   /* accuracy: simulated seconds, 0 = default */
+    double error;      /* accuracy: error budget, m */
+    const char *knobs; /* accuracy: comma list of dt, spacing, history */
+} bench_args;
+
+static int bad(const char *msg, const char *arg)
+{
+    fprintf(stderr, "stf bench: %s '%s'\n", msg, arg);
+    return 2;
+}
+
+static int parse(int argc, char **argv, bench_args *a)
+{
+    memset(a, 0, sizeof *a);
+    a->error = 0.01;
+    if (argc < 1) return bad("needs one of table1, effects, accuracy; got", "");
+    a->what = argv[0];
+    if (strcmp(a->what, "table1") && strcmp(a->what, "effects") && strcmp(a->what, "accuracy") &&
+        strcmp(a->what, "scaling"))
+        return bad("unknown benchmark (allowed: table1, effects, accuracy, scaling):", a->what);
+    for (int i = 1; i < argc; i++) {
+        const char *s = argv[i];
+        int more = i + 1 < argc;
+        char *end;
+        if ((!strcmp(s, "-o") || !strcmp(s, "--out")) && more) a->out = argv[++i];
+        else if (!strcmp(s, "--set") && more) {
+            char *eq = strchr(argv[++i], '=');
+            if (!eq) return bad("--set needs KEY=VALUE, got", argv[i]);
+            if (a->nov == MAX_OV) return bad("too many overrides at", argv[i]);
+            *eq = 0;
+            a->ov[a->nov].key = argv[i];
+            a->ov[a->nov++].value = eq + 1;
+        } else if (!strcmp(s, "--unset") && more) {
+            if (a->nov == MAX_OV) return bad("too many overrides at", argv[i + 1]);
+            a->ov[a->nov].key = argv[++i];
+            a->ov[a->nov++].value = NULL;
+        } else if (!strcmp(s, "--threads") && more) {
+            long t = strtol(argv[++i], &end, 10);
+            if (*end || t < 1 || t > 1024) return bad("--threads must be an integer in [1,1024], got", argv[i]);
+            a->threads = (int)t;
+        } else if (!strcmp(s, "--steps") && more) {
+            long t = strtol(argv[++i], &end, 10);
+            if (*end || t < 1 || t > 1000000) return bad("--steps must be an integer >= 1, got", argv[i]);
+            a->steps = (int)t;
+        } else if (!strcmp(s, "--warmup") && more) {
+            long t = strtol(argv[++i], &end, 10);
+            if (*end || t < 0 || t > 1000000) return bad("--warmup must be an integer >= 0, got", argv[i]);
+            a->warmup = (int)t;
+            a->warmup_set = 1;
+        } else if (!strcmp(s, "--duration") && more) {
+            a->duration = strtod(argv[++i], &end);
+            if (*end || !(a->duration > 0) || !isfinite(a->duration))
+                return bad("--duration must be a number of seconds > 0, got", argv[i]);
+        } else if (!strcmp(s, "--error") && more) {
+            a->error = strtod(argv[++i], &end);
+            if (*end || !(a->error > 0) || !isfinite(a->error))
+                return bad("--error must be a distance in m > 0, got", argv[i]);
+        } else if (!strcmp(s, "--knobs") && more) a->knobs = argv[++i];
+        else if (!strcmp(s, "--full")) a->full = 1;
+        else if (s[0] == '-') return bad("unknown or incomplete option", s);
+        else if (!a->scene) a->scene = s;
+        else return bad("unexpected argument", s);
+    }
+    if (!a->scene && strcmp(a->what, "table1")) return bad("needs a scene file after", a->what);
+    if (!a->steps) a->steps = a->full ? 200 : 30;
+    /* 50 steps: the bowling ball reaches the pool (t = 0.05 s), so the timed steps include
+       the impact rather than a pool at rest */
+    if (!a->warmup_set) a->warmup = 50;
+    return 0;
+}
+
+/* ------------------------------------------------------------------ in-process timing */
+
+typedef struct timing {
+    int particles;
+    long springs;
+    double step_ms;                /* wall per coupled step (fluid + ODE), ms */
+    double cpu_ms;                 /* process cpu time per step (all threads), ms */
+    double stage_ms[STAGE_COUNT];  /* per fluid stage, ms per step */
+    size_t bytes[6];               /* per effect, bytes (index = bit of enum stf_effect) */
+    int history_steps;
+    long rebuilds;                 /* neighbour candidate rebuilds in the timed steps */
+} timing;
+
+static const char *const effect_names[6] = {"gravity", "viscosity", "pressure", "springs",
+                                            "history", "boundary_stick"};
+static const char *const stage_names[STAGE_COUNT] = {"grid",     "gravity",  "viscosity",
+                                                     "springs",  "history",  "pressure",
+                                                     "collide",  "boundary"};
+
+static double cpu_seconds(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* Loads a scene (from path, or text when path is NULL), runs `warm` steps, then times
+ * `steps` steps. Returns 0, 2 bad scene, 3 numerical failure. */
+static int time_scene(const char *path, const char *text, const stf_override *ov, int nov,
+                      int warm, int steps, timing *t)
+{
+    char err[2048];
+    stf_scene *sc;
+    int rc = path ? stf_scene_load(path, ov, nov, &sc, err, sizeof err)
+                  : stf_scene_load_string("vibration_layer", text, ov, nov, &sc, err, sizeof err);
+    if (rc != 0) {
+        fprintf(stderr, "%s\n", err);
+        return 2;
+    }
+    stf_sim *sim;
+    if (stf_sim_create(sc, &sim, err, sizeof err) != 0) {
+        fprintf(stderr, "%s\n", err);
+        stf_scene_free(sc);
+        return 2;
+    }
+    memset(t, 0, sizeof *t);
+    rc = 0;
+    for (int s = 0; s < warm && rc == 0; s++) rc = stf_sim_step(sim);
+    /* Time a full window, as after d steps: the ring's unwritten slots are zero velocities
+       (the pool at rest before t = 0), so the weighted sums run over all d lags. */
+    stf_history *hh = &sim->fluid->hist;
+    if (hh->w && !hh->terms && hh->window > 0 && hh->pushed > 0 && hh->pushed < hh->cap)
+        hh->pushed = hh->cap;
+    double before[STAGE_COUNT];
+    memcpy(before, sim->fluid->stage_seconds, sizeof before);
+    long rebuilds0 = sim->fluid->grid.rebuilds;
+    double t0 = omp_get_wtime(), c0 = cpu_seconds();
+    for (int s = 0; s < steps && rc == 0; s++) rc = stf_sim_step(sim);
+    double wall = omp_get_wtime() - t0, cpu = cpu_seconds() - c0;
+    if (rc != 0) {
+        fprintf(stderr, "stf bench: numerical failure: %s\n", stf_fluid_failure(sim->fluid));
+        rc = 3;
+    } else {
+        t->particles = stf_fluid_count(sim->fluid);
+        t->springs = stf_fluid_spring_count(sim->fluid);
+        t->step_ms = 1e3 * wall / steps;
+        t->cpu_ms = 1e3 * cpu / steps;
+        for (int k = 0; k < STAGE_COUNT; k++)
+            t->stage_ms[k] = 1e3 * (sim->fluid->stage_seconds[k] - before[k]) / steps;
+        for (int e = 0; e < 6; e++) t->bytes[e] = stf_fluid_effect_bytes(sim->fluid, 1u << e);
+        t->history_steps = stf_fluid_history_steps(sim->fluid);
+        t->rebuilds = sim->fluid->grid.rebuilds - rebuilds0;
+    }
+    stf_sim_destroy(sim);
+    stf_scene_free(sc);
+    return rc;
+}
+
+static void print_load(void)
+{
+    double l[3];
+    if (getloadavg(l, 3) == 3) printf("# load average %.2f %.2f %.2f, ", l[0], l[1], l[2]);
+    else printf("# ");
+    printf("%d OpenMP threads, %ld cores online\n", omp_get_max_threads(),
+           sysconf(_SC_NPROCESSORS_ONLN));
+}
+
+/* ------------------------------------------------------------------------- table 1 */
+
+/* A vibrated layer of about 20K particles (paper Fig. 5): the container shakes up and down. */
+static const char vibration_layer[] =
+    "name: vibration_layer\n"
+    "duration: 2.0\n"
+    "dt: 0.001\n"
+    "frame_rate: 30\n"
+    "fluid:\n"
+    "  model: clavet_stf\n"
+    "  spacing: 0.015\n"
+    "  density: 1270\n"
+    "  blocks:\n"
+    "    - min: [-0.3, -0.3, 0.0]\n"
+    "      max: [0.3, 0.3, 0.18]\n"
+    "effects:\n"
+    "  gravity: {g: [0, 0, -9.81]}\n"
+    "  viscosity: {sigma: 10.0}\n"
+    "  pressure: {k: 1000, k_near: 200}\n"
+    "  springs: {k_min: 100, yield_ratio: 0.0, plasticity: 2.0}\n"
+    "  history: {q: 0.5, d: 50, k_hist: 200000, reference_spacing: 0.02}\n"
+    "  boundary_stick: {stick: 200}\n"
+    "container:\n"
+    "  size: [0.6, 0.6, 0.3]\n"
+    "  wall: 0.03\n"
+    "  motion: kinematic\n"
+    "  vibration: {axis: [0, 0, 1], amplitude: 0.004, frequency: 40}\n";
+
+/* Paper Table 1: t_simstep (s), t_history (ms), m_history (MB) for d = 0, 50, 150, 500. */
+static const double paper_step[2][4] = {{1.226, 1.335, 1.494, 1.627}, {1.192, 1.245, 1.388, 1.539}};
+static const double paper_hist[2][4] = {{0, 4, 12, 40}, {0, 4, 12, 40}};
+
+static int bench_table1(const bench_args *a)
+{
+    static const int ds[5] = {0, 50, 150, 500, -16}; /* -K: soe with K terms (full history) */
+    const char *bowling = a->scene ? a->scene : "scenes/bowling_ball.yaml";
+    printf("# stf bench table1: %d timed steps after %d warm-up steps (--full: 200)\n", a->steps,
+           a->warmup);
+    print_load();
+    printf("%-12s %4s %6s | %10s %10s %8s %8s %9s | %10s %10s %8s | %8s %8s\n", "experiment",
+           "d", "n", "step ms", "hist ms", "hist %", "mem MB", "cpu ms", "paper s", "paper ms",
+           "paper MB", "x step", "x hist");
+    for (int e = 0; e < 2; e++) {
+        for (int k = 0; k < 5; k++) {
+            stf_override ov[MAX_OV + 4];
+            int nov = 0;
+            for (int i = 0; i < a->nov; i++) ov[nov++] = a->ov[i];
+            char dv[32];
+            snprintf(dv, sizeof dv, "%d", ds[k]);
+            if (ds[k] == 0) ov[nov++] = (stf_override){"effects.history", NULL};
+            else if (ds[k] > 0) ov[nov++] = (stf_override){"effects.history.d", dv};
+            else {
+                snprintf(dv, sizeof dv, "%d", -ds[k]);
+                ov[nov++] = (stf_override){"effects.history.mode", "soe"};
+                ov[nov++] = (stf_override){"effects.history.terms", dv};
+            }
+            timing t;
+            int rc = e == 0 ? time_scene(bowling, NULL, ov, nov, a->warmup, a->steps, &t)
+                            : time_scene(NULL, vibration_layer, ov, nov, a->warmup, a->steps, &t);
+            if (rc) return rc;
+            double hist = t.stage_ms[STAGE_HISTORY];
+            double simstep = t.step_ms - hist; /* the step without the history terms */
+            if (ds[k] < 0) { /* no paper row: the soe history's own cost */
+                double soe_mem = (double)t.bytes[4] / 1e6;
+                printf("%-12s %4s %6d | %10.2f %10.3f %7.1f%% %8.1f %9.2f | %10s %10s %8s | %8s %8s\n",
+                       e == 0 ? "bowling" : "vibration", "soe", t.particles, simstep, hist,
+                       100.0 * hist / t.step_ms, soe_mem, t.cpu_ms, "-", "-", "-", "-", "-");
+                fflush(stdout);
+                continue;
+            }
+            double mem = 12.0 * t.particles * ds[k] / 1e6; /* the paper's 12 n d */
+            double pm = 12.0 * 20000 * ds[k] / 1e6;
+            printf("%-12s %4d %6d | %10.2f %10.3f %7.1f%% %8.1f %9.2f | %10.3f %10.0f %8.0f | %8.0f %8s\n",
+                   e == 0 ? "bowling" : "vibration", ds[k], t.particles, simstep, hist,
+                   100.0 * hist / t.step_ms, mem, t.cpu_ms, paper_step[e][k], paper_hist[e][k], pm,
+                   1e3 * paper_step[e][k] / simstep,
+                   ds[k] ? (snprintf(dv, sizeof dv, "%.0f", paper_hist[e][k] / hist), dv) : "-");
+            if (ds[k] && t.bytes[4] < (size_t)(mem * 1e6))
+                printf("# warning: history storage %zu B below 12 n d\n", t.bytes[4]);
+            fflush(stdout);
+        }
+    }
+    printf("# step ms: wall per step minus the history stage; hist ms: the history stage (ring\n"
+           "# push + weighted sums); mem: 12 n d (allocated: d+1 float32 vectors per particle);\n"
+           "# cpu ms: process cpu time per whole step, all threads (steadier than wall on a busy machine).\n"
+           "# x step, x hist: paper time / our time (paper: one i7-2600K core, 2011).\n"
+           "# soe: history mode soe, 16 exponentials, full history (mem: all its storage).\n"
+           "# The window is timed full (d lags summed; the past before t = 0 is rest).\n");
+    return 0;
+}
+
+/* ------------------------------------------------------------------------- effects */
+
+static int bench_effects(const bench_args *a)
+{
+    char err[2048];
+    stf_scene *sc;
+    if (stf_scene_load(a->scene, a->ov, a->nov, &sc, err, sizeof err) != 0) {
+        fprintf(stderr, "%s\n", err);
+        return 2;
+    }
+    unsigned have = sc->fluid.effects;
+    stf_scene_free(sc);
+    printf("# stf bench effects %s: %d timed steps after %d warm-up steps\n", a->scene, a->steps,
+           a->warmup);
+    print_load();
+    printf("%-22s %9s %9s %9s |", "run", "step ms", "cpu ms", "saved ms");
+    for (int k = 0; k < STAGE_COUNT; k++) printf(" %9s", stage_names[k]);
+    printf(" | %s\n", "effect storage (B)");
+    timing base = {0};
+    double base_ms = 0;
+    for (int e = -1; e < 6; e++) {
+        if (e >= 0 && !(have & (1u << e))) continue;
+        stf_override ov[MAX_OV + 2];
+        int nov = 0;
+        for (int i = 0; i < a->nov; i++) ov[nov++] = a->ov[i];
+        char key[64], label[64];
+        if (e >= 0) {
+            snprintf(key, sizeof key, "effects.%s", effect_names[e]);
+            ov[nov++] = (stf_override){key, NULL};
+            /* history lives on the springs: without springs there is no history either */
+            if (e == 3 && (have & STF_EFFECT_HISTORY)) ov[nov++] = (stf_override){"effects.history", NULL};
+            snprintf(label, sizeof label, "no %s%s", effect_names[e],
+                     e == 3 && (have & STF_EFFECT_HISTORY) ? "+history" : "");
+        } else snprintf(label, sizeof label, "all (scene)");
+        timing t;
+        int rc = time_scene(a->scene, NULL, ov, nov, a->warmup, a->steps, &t);
+        if (rc == 3) {
+            printf("%-22s   fails without this effect (numerical failure)\n", label);
+            continue;
+        }
+        if (rc) return rc;
+        if (e < 0) base = t, base_ms = t.step_ms;
+        printf("%-22s %9.2f %9.2f %9.2f |", label, t.step_ms, t.cpu_ms, e < 0 ? 0.0 : base_ms - t.step_ms);
+        for (int k = 0; k < STAGE_COUNT; k++) printf(" %9.3f", t.stage_ms[k]);
+        printf(" |");
+        for (int k = 0; k < 6; k++)
+            if (t.bytes[k]) printf(" %s=%zu", effect_names[k], t.bytes[k]);
+        printf("\n");
+        fflush(stdout);
+        /* An effect that is off must cost nothing: no stage time, no storage. */
+        if (e >= 0) {
+            int stage = e == 0 ? STAGE_GRAVITY : e == 1 ? STAGE_VISCOSITY : e == 2 ? STAGE_PRESSURE
+                      : e == 3 ? STAGE_SPRINGS : e == 4 ? STAGE_HISTORY : STAGE_BOUNDARY;
+            if (t.stage_ms[stage] != 0 || t.bytes[e] != 0) {
+                fprintf(stderr, "stf bench: effect %s is off but cost %.3g ms and %zu B\n",
+                        effect_names[e], t.stage_ms[stage], t.bytes[e]);
+                return 1;
+            }
+        }
+    }
+    printf("# not in the scene (0 ms, 0 B, checked):");
+    for (int e = 0; e < 6; e++)
+        if (!(have & (1u << e))) printf(" %s", effect_names[e]);
+    printf("\n# %d particles, %ld springs in the full run; neighbour candidates rebuilt in %ld of "
+           "the %d timed steps\n", base.particles, base.springs, base.rebuilds, a->steps);
+    return 0;
+}
+
+/* ------------------------------------------------------------------------- scaling */
+
+/* The scene at its spacing and at spacing / 10^(1/3) (10x the particles): cost per step. */
+static int bench_scaling(const bench_args *a)
+{
+    char err[2048];
+    stf_scene *sc;
+    if (stf_scene_load(a->scene, a->ov, a->nov, &sc, err, sizeof err) != 0) {
+        fprintf(stderr, "%s\n", err);
+        return 2;
+    }
+    double sp = sc->fluid.spacing;
+    stf_scene_free(sc);
+    printf("# stf bench scaling %s: %d timed steps after %d warm-up steps\n", a->scene, a->steps,
+           a->warmup);
+    print_load();
+    printf("%12s %9s %10s %10s %14s %8s\n", "spacing m", "n", "step ms", "cpu ms", "particles/s",
+           "x time");
+    double first = 0;
+    int n0 = 0;
+    for (int k = 0; k < 2; k++) {
+        stf_override ov[MAX_OV + 1];
+        int nov = 0;
+        for (int i = 0; i < a->nov; i++) ov[nov++] = a->ov[i];
+        char v[64];
+        double spk = k == 0 ? sp : sp / cbrt(10.0);
+        snprintf(v, sizeof v, "%.9g", spk);
+        ov[nov++] = (stf_override){"fluid.spacing", v};
+        timing t;
+        int rc = time_scene(a->scene, NULL, ov, nov, a->warmup, a->steps, &t);
+        if (rc) return rc;
+        if (k == 0) first = t.step_ms, n0 = t.particles;
+        printf("%12.5g %9d %10.2f %10.2f %14.3g %8.2f\n", spk, t.particles, t.step_ms, t.cpu_ms,
+               1e3 * t.particles / t.step_ms, t.step_ms / first);
+        fflush(stdout);
+    }
+    (void)n0;
+    printf("# x time: step time / the first row's (linear cost: the particle ratio)\n");
+    return 0;
+}
+
+/* ------------------------------------------------------------------------ accuracy */
+
+typedef struct acc_run {
+    char knob[16], setting[48];
+    double value;     /* the knob's value (dt s, spacing m, history: terms or d) */
+    double wall;      /* s, the run's own wall clock of its steps */
+    double cpu;       /* s, user + system time of the whole child process */
+    int ok;
+    stf_metrics m;
+    int nb;           /* body samples */
+    double *bt, *bp;  /* body time, position (first body) */
+    int nf;           /* frames */
+    double *ft, *fc;  /* frame time, fluid centre of mass */
+    double err_body, err_com, err_metric; /* m */
+} acc_run;
+
+static int spawn_run(const char *self, const char *scene, const char *out, const bench_args *a,
+                     const char *const *extra, int nextra, double duration, double *cpu)
+{
+    const char *argv[2 * MAX_OV + 32];
+    int n = 0;
+    char dur[32], thr[16];
+    argv[n++] = self;
+    argv[n++] = "run";
+    argv[n++] = scene;
+    argv[n++] = "-o";
+    argv[n++] = out;
+    argv[n++] = "--quiet";
+    snprintf(dur, sizeof dur, "%.9g", duration);
+    argv[n++] = "--duration";
+    argv[n++] = dur;
+    if (a->threads) {
+        snprintf(thr, sizeof thr, "%d", a->threads);
+        argv[n++] = "--threads";
+        argv[n++] = thr;
+    }
+    static char ovbuf[MAX_OV][512];
+    for (int i = 0; i < a->nov; i++) {
+        if (a->ov[i].value) {
+            snprintf(ovbuf[i], sizeof ovbuf[i], "%s=%s", a->ov[i].key, a->ov[i].value);
+            argv[n++] = "--set";
+            argv[n++] = ovbuf[i];
+        } else {
+            argv[n++] = "--unset";
+            argv[n++] = a->ov[i].key;
+        }
+    }
+    for (int i = 0; i < nextra; i++) argv[n++] = extra[i];
+    argv[n] = NULL;
+    pid_t pid;
+    if (posix_spawn(&pid, self, NULL, NULL, (char *const *)argv, environ) != 0) return -1;
+    int st;
+    struct rusage ru;
+    if (wait4(pid, &st, 0, &ru) < 0) return -1;
+    *cpu = (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec +
+           (double)ru.ru_stime.tv_sec + 1e-6 * (double)ru.ru_stime.tv_usec;
+    return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+static int read_run(const char *path, acc_run *r)
+{
+    char err[1024];
+    if (stf_metrics_compute(path, &r->m, err, sizeof err) != 0) return -1;
+    stf_h5r *h;
+    if (stf_h5r_open(path, &h, err, sizeof err) != 0) return -1;
+    if (stf_h5r_attr_double(h, "wall_seconds", &r->wall) != 0) r->wall = NAN;
+    r->nb = 0;
+    if (stf_h5r_body_count(h) > 0) {
+        int nb = stf_h5r_body_series(h, stf_h5r_body_name(h, 0), &r->bt, &r->bp, NULL, NULL, NULL, NULL);
+        r->nb = nb > 0 ? nb : 0;
+    }
+    r->nf = stf_h5r_frames(h);
+    r->ft = malloc(((size_t)r->nf + 1) * sizeof *r->ft);
+    r->fc = malloc(((size_t)r->nf + 1) * 3 * sizeof *r->fc);
+    int rc = r->ft && r->fc ? 0 : -1;
+    for (int k = 0; k < r->nf && rc == 0; k++) {
+        int n = stf_h5r_frame_count(h, k);
+        double *x = malloc(((size_t)n + 1) * 3 * sizeof *x);
+        if (!x || stf_h5r_read_frame(h, k, x, NULL) != 0) rc = -1;
+        double c[3] = {0, 0, 0};
+        for (int i = 0; rc == 0 && i < n; i++)
+            for (int q = 0; q < 3; q++) c[q] += x[3 * i + q] / n;
+        r->ft[k] = stf_h5r_frame_time(h, k);
+        memcpy(r->fc + 3 * k, c, sizeof c);
+        free(x);
+    }
+    stf_h5r_close(h);
+    return rc;
+}
+
+/* RMS over the reference's samples of |p(t) - p_ref(t)|, p linearly interpolated in time. */
+static double path_error(const double *t, const double *p, int n, const double *tr,
+                         const double *pr, int nr)
+{
+    if (n < 2 || nr < 1) return NAN;
+    double s = 0;
+    int cnt = 0, j = 0;
+    for (int k = 0; k < nr; k++) {
+        if (tr[k] < t[0] || tr[k] > t[n - 1]) continue;
+        while (j + 2 < n && t[j + 1] < tr[k]) j++;
+        double u = t[j + 1] > t[j] ? (tr[k] - t[j]) / (t[j + 1] - t[j]) : 0;
+        if (u < 0) u = 0;
+        if (u > 1) u = 1;
+        double d2 = 0;
+        for (int q = 0; q < 3; q++) {
+            double v = (1 - u) * p[3 * j + q] + u * p[3 * (j + 1) + q] - pr[3 * k + q];
+            d2 += v * v;
+        }
+        s += d2;
+        cnt++;
+    }
+    return cnt ? sqrt(s / cnt) : NAN;
+}
+
+/* The largest difference of the length metrics (bounce height, roll distance), in m, and
+ * of the time metrics (contact, sink, float) times 1 m/s (so 10 ms counts as 1 cm), and a
+ * bounce more or less as 1 cm. NaN on one side only counts as the other's value. Without
+ * bodies: the fluid's rebound and finger height. */
+static double metric_error(const stf_metrics *m, const stf_metrics *r)
+{
+    if (m->nbodies < 1 || r->nbodies < 1) /* drop and vibration scenes */
+        return fmax(fabs(m->com_rebound_height - r->com_rebound_height),
+                    fabs(m->finger_height - r->finger_height));
+    const stf_body_metrics *a = &m->bodies[0], *b = &r->bodies[0];
+    double v[6][2] = {{a->max_rebound_height, b->max_rebound_height},
+                      {a->roll_distance, b->roll_distance},
+                      {a->first_contact_time, b->first_contact_time},
+                      {a->sink_time, b->sink_time},
+                      {a->float_duration, b->float_duration},
+                      {(double)a->bounces * 0.01, (double)b->bounces * 0.01}};
+    double worst = 0;
+    for (int k = 0; k < 6; k++) {
+        double x = v[k][0], y = v[k][1], d;
+        if (isnan(x) && isnan(y)) continue;
+        d = isnan(x) ? fabs(y) : isnan(y) ? fabs(x) : fabs(x - y);
+        if (d > worst) worst = d;
+    }
+    return worst;
+}
+
+static void free_run(acc_run *r)
+{
+    free(r->bt), free(r->bp), free(r->ft), free(r->fc);
+    r->bt = r->bp = r->ft = r->fc = NULL;
+}
+
+static void plot_pareto(const char *path, acc_run *runs, int nruns, double budget)
+{
+    static const float BLACK[3] = {0, 0, 0}, GRID[3] = {0.85f, 0.85f, 0.85f},
+                       WHITE[3] = {1, 1, 1}, RED[3] = {0.8f, 0.1f, 0.1f};
+    static const float col[3][3] = {{0.12f, 0.35f, 0.75f}, {0.9f, 0.5f, 0.05f}, {0.1f, 0.6f, 0.2f}};
+    static const char *const knobs[3] = {"dt", "spacing", "history"};
+    int W = 1000, H = 700, x0 = 110, x1 = 960, y0 = 80, y1 = 610;
+    canvas *c = canvas_new(W, H);
+    if (!c) return;
+    canvas_fill(c, WHITE);
+    double tmin = INFINITY, tmax = -INFINITY, emin = INFINITY, emax = -INFINITY;
+    for (int i = 0; i < nruns; i++) {
+        if (!runs[i].ok) continue;
+        tmin = fmin(tmin, runs[i].cpu), tmax = fmax(tmax, runs[i].cpu);
+        double e = fmax(runs[i].err_body, 1e-5);
+        emin = fmin(emin, e), emax = fmax(emax, e);
+    }
+    if (!(tmax > 0)) {
+        canvas_free(c);
+        return;
+    }
+    emin = fmin(emin, budget), emax = fmax(emax, budget);
+    double lt0 = floor(log10(tmin)), lt1 = ceil(log10(tmax)), le0 = floor(log10(emin)),
+           le1 = ceil(log10(emax));
+    if (lt1 <= lt0) lt1 = lt0 + 1;
+    if (le1 <= le0) le1 = le0 + 1;
+#define PX(t) (x0 + (x1 - x0) * (log10(t) - lt0) / (lt1 - lt0))
+#define PY(e) (y1 - (y1 - y0) * (log10(e) - le0) / (le1 - le0))
+    char buf[64];
+    for (double d = lt0; d <= lt1 + 1e-9; d++) {
+        double x = PX(pow(10, d));
+        canvas_line(c, x, y0, x, y1, GRID, 1);
+        snprintf(buf, sizeof buf, "%g", pow(10, d));
+        canvas_text(c, (int)x - canvas_text_width(buf, 2) / 2, y1 + 10, buf, BLACK, 2);
+    }
+    for (double d = le0; d <= le1 + 1e-9; d++) {
+        double y = PY(pow(10, d));
+        canvas_line(c, x0, y, x1, y, GRID, 1);
+        snprintf(buf, sizeof buf, "%g", pow(10, d));
+        canvas_text(c, x0 - 10 - canvas_text_width(buf, 2), (int)y - 7, buf, BLACK, 2);
+    }
+    canvas_line(c, x0, y0, x1, y0, BLACK, 1.5), canvas_line(c, x0, y1, x1, y1, BLACK, 1.5);
+    canvas_line(c, x0, y0, x0, y1, BLACK, 1.5), canvas_line(c, x1, y0, x1, y1, BLACK, 1.5);
+    canvas_dashed_line(c, x0, PY(budget), x1, PY(budget), RED, 1.5, 8, 6);
+    snprintf(buf, sizeof buf, "budget %g m", budget);
+    canvas_text_halo(c, x1 - 10 - canvas_text_width(buf, 2), (int)PY(budget) - 20, buf, RED, WHITE, 2);
+    canvas_text(c, x0, 20, "error vs cost (each knob against its finest setting)", BLACK, 2);
+    canvas_text(c, x0, 44, "y: rms body path error, m (reference: 1e-5)   x: cpu time, s", BLACK, 2);
+    for (int k = 0; k < 3; k++) {
+        double px = 0, py = 0;
+        char series[16] = "";
+        for (int i = 0; i < nruns; i++) {
+            if (!runs[i].ok || strcmp(runs[i].knob, knobs[k])) continue;
+            /* one line per mode: window d, soe K (full and its 0 error stand alone) */
+            char mode[16];
+            snprintf(mode, sizeof mode, "%s", runs[i].setting);
+            mode[strcspn(mode, " =")] = 0;
+            double x = PX(runs[i].cpu), y = PY(fmax(runs[i].err_body, 1e-5));
+            if (!strcmp(series, mode)) canvas_line(c, px, py, x, y, col[k], 2);
+            canvas_circle(c, x, y, 5, col[k]);
+            canvas_text_halo(c, (int)x + 8, (int)y - 7 - 10 * (i % 2), runs[i].setting, col[k], WHITE, 1);
+            px = x, py = y;
+            snprintf(series, sizeof series, "%s", mode);
+        }
+        canvas_circle(c, x0 + 35 + 220 * k, y1 + 57, 5, col[k]);
+        canvas_text(c, x0 + 48 + 220 * k, y1 + 50, knobs[k], BLACK, 2);
+    }
+#undef PX
+#undef PY
+    char err[512];
+    if (canvas_write_png(c, path, err, sizeof err) != 0) fprintf(stderr, "stf bench: %s\n", err);
+    canvas_free(c);
+}
+
+static int bench_accuracy(const bench_args *a, const char *self)
+{
+    char err[2048];
+    stf_scene *sc;
+    if (stf_scene_load(a->scene, a->ov, a->nov, &sc, err, sizeof err) != 0) {
+        fprintf(stderr, "%s\n", err);
+        return 2;
+    }
+    double dt = sc->dt, sp = sc->fluid.spacing;
+    int hist = (sc->fluid.effects & STF_EFFECT_HISTORY) != 0;
+    double duration = a->duration > 0 ? a->duration : a->full ? sc->duration : fmin(sc->duration, 0.6);
+    stf_scene_free(sc);
+    /* Short by default: the spacing the cli_bowling test uses and 0.6 s (the impact). */
+    double base_sp = a->full ? sp : fmax(sp, 0.025);
+    const char *dir = a->out ? a->out : "bench_accuracy";
+    if (mkdir(dir, 0777) != 0 && errno != EEXIST) {
+        fprintf(stderr, "stf bench: cannot create %s: %s\n", dir, strerror(errno));
+        return 2;
+    }
+    const char *knobs = a->knobs ? a->knobs : "dt,spacing,history";
+    acc_run runs[64];
+    int nruns = 0;
+    memset(runs, 0, sizeof runs);
+    /* Settings, finest first: the first of each knob is its reference. */
+    for (int k = 0; k < 3; k++) {
+        static const char *const names[3] = {"dt", "spacing", "history"};
+        if (!strstr(knobs, names[k]) || (k == 2 && !hist)) continue;
+        int first = nruns;
+        if (k == 0) {
+            static const double f[] = {0.25, 0.5, 1.0, 2.0};
+            for (int i = 0; i < 4; i++) {
+                acc_run *r = &runs[nruns++];
+                strcpy(r->knob, "dt");
+                r->value = dt * f[i];
+                snprintf(r->setting, sizeof r->setting, "dt=%g", r->value);
+            }
+        } else if (k == 1) {
+            static const double f[] = {0.6, 0.8, 1.0, 1.4};
+            for (int i = 0; i < 4; i++) {
+                acc_run *r = &runs[nruns++];
+                strcpy(r->knob, "spacing");
+                r->value = base_sp * f[i];
+                snprintf(r->setting, sizeof r->setting, "spacing=%.4g", r->value);
+            }
+        } else {
+            static const char *const s[] = {"full", "window d=500", "window d=150", "window d=50",
+                                            "window d=10", "soe K=16", "soe K=8", "soe K=4"};
+            for (int i = 0; i < 8; i++) {
+                acc_run *r = &runs[nruns++];
+                strcpy(r->knob, "history");
+                snprintf(r->setting, sizeof r->setting, "%s", s[i]);
+            }
+        }
+        (void)first;
+    }
+    printf("# stf bench accuracy %s: %.3g s simulated, base spacing %g m, base dt %g s\n", a->scene,
+           duration, base_sp, dt);
+    print_load();
+    for (int i = 0; i < nruns; i++) {
+        acc_run *r = &runs[i];
+        char path[1024], v1[64], v2[64], v3[64];
+        snprintf(path, sizeof path, "%s/run%02d.h5", dir, i);
+        const char *extra[12];
+        int ne = 0;
+        snprintf(v1, sizeof v1, "fluid.spacing=%.9g", !strcmp(r->knob, "spacing") ? r->value : base_sp);
+        extra[ne++] = "--set", extra[ne++] = v1;
+        if (!strcmp(r->knob, "dt")) {
+            snprintf(v2, sizeof v2, "dt=%.9g", r->value);
+            extra[ne++] = "--set", extra[ne++] = v2;
+        }
+        if (!strcmp(r->knob, "history")) {
+            if (!strncmp(r->setting, "full", 4)) {
+                extra[ne++] = "--set", extra[ne++] = "effects.history.mode=full";
+            } else if (!strncmp(r->setting, "window", 6)) {
+                snprintf(v2, sizeof v2, "effects.history.d=%s", r->setting + 9);
+                extra[ne++] = "--set", extra[ne++] = "effects.history.mode=window";
+                extra[ne++] = "--set", extra[ne++] = v2;
+            } else {
+                snprintf(v3, sizeof v3, "effects.history.terms=%s", r->setting + 6);
+                extra[ne++] = "--set", extra[ne++] = "effects.history.mode=soe";
+                extra[ne++] = "--set", extra[ne++] = v3;
+            }
+        }
+        int rc = spawn_run(self, a->scene, path, a, extra, ne, duration, &r->cpu);
+        r->ok = (rc == 0 || rc == 3) && read_run(path, r) == 0;
+        if (rc == 3) r->ok = 0;
+        fprintf(stderr, "  %-8s %-18s %s, %.1f s wall, %.1f s cpu\n", r->knob, r->setting,
+                r->ok ? "ok" : rc == 3 ? "numerical failure" : "failed", r->wall, r->cpu);
+    }
+    /* Errors against the first (finest) run of the same knob. */
+    char csv[1024];
+    snprintf(csv, sizeof csv, "%s/accuracy.csv", dir);
+    FILE *fc = fopen(csv, "w");
+    if (!fc) {
+        fprintf(stderr, "stf bench: cannot write %s\n", csv);
+        return 2;
+    }
+    fprintf(fc, "knob,setting,wall_s,cpu_s,err_body_path_m,err_fluid_com_m,err_metrics,bounces,"
+                "max_rebound_height_m,first_contact_s,sink_time_s,float_duration_s,roll_distance_m,"
+                "com_rebound_height_m\n");
+    printf("%-8s %-18s %9s %9s %12s %12s %12s %7s %9s %9s\n", "knob", "setting", "wall s", "cpu s",
+           "body path m", "fluid com m", "metrics", "bounces", "rebound", "sink s");
+    for (int i = 0; i < nruns; i++) {
+        acc_run *r = &runs[i];
+        int ref = i;
+        while (ref > 0 && !strcmp(runs[ref - 1].knob, r->knob)) ref--;
+        const acc_run *R = &runs[ref];
+        if (!r->ok || !R->ok) {
+            fprintf(fc, "%s,%s,,,,,,,,,,,,\n", r->knob, r->setting);
+            printf("%-8s %-18s   (failed)\n", r->knob, r->setting);
+            continue;
+        }
+        r->err_body = r->nb ? path_error(r->bt, r->bp, r->nb, R->bt, R->bp, R->nb)
+                            : path_error(r->ft, r->fc, r->nf, R->ft, R->fc, R->nf);
+        r->err_com = path_error(r->ft, r->fc, r->nf, R->ft, R->fc, R->nf);
+        r->err_metric = metric_error(&r->m, &R->m);
+        const stf_body_metrics *b = r->m.nbodies ? &r->m.bodies[0] : NULL;
+        fprintf(fc, "%s,%s,%.4f,%.4f,%.6g,%.6g,%.6g,%d,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n", r->knob,
+                r->setting, r->wall, r->cpu, r->err_body, r->err_com, r->err_metric, b ? b->bounces : 0,
+                b ? b->max_rebound_height : NAN, b ? b->first_contact_time : NAN,
+                b ? b->sink_time : NAN, b ? b->float_duration : NAN, b ? b->roll_distance : NAN,
+                r->m.com_rebound_height);
+        printf("%-8s %-18s %9.2f %9.2f %12.5f %12.5f %12.5f %7d %9.4f %9.4f\n", r->knob, r->setting,
+               r->wall, r->cpu, r->err_body, r->err_com, r->err_metric, b ? b->bounces : 0,
+               b ? b->max_rebound_height : NAN, b ? b->sink_time : NAN);
+    }
+    fclose(fc);
+    /* The cheapest setting within the budget, per knob (its reference excluded). */
+    for (int i = 0; i < nruns;) {
+        int j = i, best = -1;
+        while (j < nruns && !strcmp(runs[j].knob, runs[i].knob)) {
+            if (j > i && runs[j].ok && runs[j].err_body <= a->error &&
+                (best < 0 || runs[j].cpu < runs[best].cpu))
+                best = j;
+            j++;
+        }
+        if (best >= 0)
+            printf("cheapest %-8s within %g m: %s (%.2f s cpu, error %.4f m; reference %s %.2f s cpu)\n",
+                   runs[i].knob, a->error, runs[best].setting, runs[best].cpu, runs[best].err_body,
+                   runs[i].setting, runs[i].cpu);
+        else
+            printf("cheapest %-8s within %g m: none but the reference %s\n", runs[i].knob, a->error,
+                   runs[i].setting);
+        i = j;
+    }
+    char png[1024];
+    snprintf(png, sizeof png, "%s/accuracy.png", dir);
+    plot_pareto(png, runs, nruns, a->error);
+    printf("# wrote %s and %s\n", csv, png);
+    for (int i = 0; i < nruns; i++) free_run(&runs[i]);
+    return 0;
+}
+
+int cli_bench(int argc, char **argv)
+{
+    bench_args a;
+    if (parse(argc, argv, &a) != 0) return 2;
+    if (a.threads) stf_set_threads(a.threads);
+    if (!strcmp(a.what, "table1")) return bench_table1(&a);
+    if (!strcmp(a.what, "effects")) return bench_effects(&a);
+    if (!strcmp(a.what, "scaling")) return bench_scaling(&a);
+    char self[4096];
+    ssize_t len = readlink("/proc/self/exe", self, sizeof self - 1);
+    if (len <= 0) return bad("cannot find this executable", "/proc/self/exe");
+    self[len] = 0;
+    return bench_accuracy(&a, self);
+}
