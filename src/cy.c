@@ -74,6 +74,12 @@ typedef struct cy_state {
     double *kprev;       /* by particle id: the pressure (k summed) of the last step, m^2/s^2 */
     int kprev_cap;
     double dt_prev;      /* s: the step kprev belongs to */
+    double *lap;         /* cap * stride: m (r.grad W)/(r^2 + 0.01 h^2) per pair, kg/m^5 */
+    double wall_gradm[WALL_BINS + 1]; /* wall_grad with Morris' mirror velocity weights */
+    double wall_lap[WALL_BINS + 1]; /* the same summed over a wall's lattice, with Morris'
+                                       mirror velocity (see tables), by distance */
+    double *lw;          /* n: sum over walls of wall_lap */
+    double *lwv;         /* 3n: sum over walls of wall_lap * v_wall */
     double *grad;        /* 3 * cap * stride: grad W_ij of each neighbour pair, 1/m^4 */
     size_t grad_cap;
     char *hit;
@@ -178,7 +184,8 @@ static void tables(stf_fluid *f, cy_state *c)
     c->rho0 = m * sum;
     c->dt_prev = 1;
     for (int bin = 0; bin <= WALL_BINS; bin++) {
-        double d = h * bin / WALL_BINS, rho = 0, grad = 0;
+        double d = h * bin / WALL_BINS, rho = 0, grad = 0, lap = 0, gradm = 0;
+        double dd = d > 0.05 * s ? d : 0.05 * s;
         for (int layer = 0; layer <= k; layer++)
             for (int a = -k; a <= k; a++)
                 for (int e = -k; e <= k; e++) {
@@ -187,7 +194,16 @@ static void tables(stf_fluid *f, cy_state *c)
                     if (r >= h) continue;
                     rho += m * kernel_w(r, h);
                     grad += -m * kernel_dw(r, h) * dz / r;
+                    /* Morris et al. (1997): the wall particle b moves with v_w - (d_b/d)
+                       (v_i - v_w), d_b its depth in the solid, so the velocity is zero on the
+                       surface itself; d_b/d capped at 1.5 */
+                    double depth = s * (0.5 + layer), ratio = depth / dd;
+                    lap += m * kernel_dw(r, h) * r / (r * r + 0.01 * h * h) *
+                           (1 + (ratio < 1.5 ? ratio : 1.5));
+                    gradm += -m * kernel_dw(r, h) * dz / r * (1 + (ratio < 1.5 ? ratio : 1.5));
                 }
+        c->wall_lap[bin] = lap;
+        c->wall_gradm[bin] = gradm;
         c->wall_rho[bin] = rho;
         c->wall_grad[bin] = grad;
     }
@@ -214,6 +230,9 @@ void cy_free(stf_fluid *f)
                         c->D,   c->nu, c->vel,   c->b,    c->dv,      c->r,  c->p,  c->Ap};
     for (size_t k = 0; k < sizeof arrays / sizeof *arrays; k++) free(arrays[k]);
     free(c->grad);
+    free(c->lap);
+    free(c->lw);
+    free(c->lwv);
     free(c->kprev);
     free(c->hit);
     free(c);
@@ -233,7 +252,7 @@ static int reserve(stf_fluid *f, int n)
     cy_state *c = f->cy;
     size_t pairs = (size_t)n * (size_t)f->grid.stride * 3;
     if (pairs > c->grad_cap) {
-        if (grow(&c->grad, pairs)) return -1;
+        if (grow(&c->grad, pairs) || grow(&c->lap, pairs / 3)) return -1;
         c->grad_cap = pairs;
     }
     c->stride = f->grid.stride;
@@ -242,7 +261,8 @@ static int reserve(stf_fluid *f, int n)
     if (grow(&c->rho, N) || grow(&c->S, N) || grow(&c->kappa, N) || grow(&c->ktot, N) ||
         grow(&c->rhostar, N) || grow(&c->gw, 3 * N) || grow(&c->qw, N) || grow(&c->wv, 9 * N) ||
         grow(&c->D, 6 * N) || grow(&c->nu, N) || grow(&c->vel, 3 * N) || grow(&c->b, 3 * N) ||
-        grow(&c->dv, 3 * N) || grow(&c->r, 3 * N) || grow(&c->p, 3 * N) || grow(&c->Ap, 3 * N))
+        grow(&c->dv, 3 * N) || grow(&c->r, 3 * N) || grow(&c->p, 3 * N) || grow(&c->Ap, 3 * N) ||
+        grow(&c->lw, N) || grow(&c->lwv, 3 * N))
         return -1;
     if (f->next_id > c->kprev_cap) {
         double *k = realloc(c->kprev, (size_t)f->next_id * sizeof *k);
@@ -261,24 +281,27 @@ static int reserve(stf_fluid *f, int n)
 /* ----------------------------------------------------------------------------- walls */
 
 /* Wall sums at distance d from a flat wall: density and the normal gradient magnitude. */
-static void wall_at(const cy_state *c, double d, double h, double *rho, double *grad)
+static void wall_at(const cy_state *c, double d, double h, double *rho, double *grad, double *lap,
+                    double *gradm)
 {
     double u = d / h * WALL_BINS;
     if (u < 0) u = 0;
     if (u >= WALL_BINS) {
-        *rho = *grad = 0;
+        *rho = *grad = *lap = *gradm = 0;
         return;
     }
     int b = (int)u;
     double t = u - b;
     *rho = (1 - t) * c->wall_rho[b] + t * c->wall_rho[b + 1];
     *grad = (1 - t) * c->wall_grad[b] + t * c->wall_grad[b + 1];
+    *lap = (1 - t) * c->wall_lap[b] + t * c->wall_lap[b + 1];
+    *gradm = (1 - t) * c->wall_gradm[b] + t * c->wall_gradm[b + 1];
 }
 
 /* Collider k's wall term at particle i: returns 1 within h, with G = sum_b m grad W_ib
  * (pointing into the solid), the density it adds and the solid's velocity there. */
 static int wall_term(const stf_fluid *f, const collider *col, int i, double G[3], double *rho,
-                     double vb[3])
+                     double *lap, double Gm[3], double vb[3])
 {
     const double *x = f->x + 3 * i;
     double h = f->h;
@@ -287,11 +310,11 @@ static int wall_term(const stf_fluid *f, const collider *col, int i, double G[3]
         for (int a = 0; a < 3; a++) d2 += (x[a] - col->pos[a]) * (x[a] - col->pos[a]);
         if (d2 > (col->bound + h) * (col->bound + h)) return 0;
     }
-    double nrm[3], g;
+    double nrm[3], g, gm;
     double d = collider_sdf(col, x, nrm);
     if (d >= h) return 0;
-    wall_at(f->cy, d, h, rho, &g);
-    for (int a = 0; a < 3; a++) G[a] = -g * nrm[a];
+    wall_at(f->cy, d, h, rho, &g, lap, &gm);
+    for (int a = 0; a < 3; a++) G[a] = -g * nrm[a], Gm[a] = -gm * nrm[a];
     collider_velocity_at(col, x, vb);
     return 1;
 }
@@ -299,13 +322,16 @@ static int wall_term(const stf_fluid *f, const collider *col, int i, double G[3]
 static void walls_one(stf_fluid *f, int i)
 {
     cy_state *c = f->cy;
-    double *gw = c->gw + 3 * i, *wv = c->wv + 9 * i, rho = 0, q = 0;
+    double *gw = c->gw + 3 * i, *wv = c->wv + 9 * i, *lwv = c->lwv + 3 * i, rho = 0, q = 0, lw = 0;
     memset(gw, 0, 3 * sizeof *gw);
     memset(wv, 0, 9 * sizeof *wv);
+    memset(lwv, 0, 3 * sizeof *lwv);
     for (int k = 0; k < f->ncolliders; k++) {
-        double G[3] = {0, 0, 0}, r = 0, vb[3] = {0, 0, 0};
-        if (!wall_term(f, &f->colliders[k], i, G, &r, vb)) continue;
+        double G[3] = {0, 0, 0}, r = 0, lap = 0, Gm[3] = {0, 0, 0}, vb[3] = {0, 0, 0};
+        if (!wall_term(f, &f->colliders[k], i, G, &r, &lap, Gm, vb)) continue;
         rho += r;
+        lw += lap;
+        for (int a = 0; a < 3; a++) lwv[a] += lap * vb[a];
         for (int a = 0; a < 3; a++) {
             gw[a] += G[a];
             q += vb[a] * G[a];
@@ -314,6 +340,7 @@ static void walls_one(stf_fluid *f, int i)
     }
     c->rho[i] = rho; /* the fluid's part is added in density_one */
     c->qw[i] = q;
+    c->lw[i] = lw;
 }
 
 /* ---------------------------------------------------------------- density and factors */
@@ -325,12 +352,13 @@ static void density_one(stf_fluid *f, int i)
     double h = f->h, m = f->mass, rho = c->rho[i] + m * kernel_w(0, h);
     double sum[3] = {c->gw[3 * i], c->gw[3 * i + 1], c->gw[3 * i + 2]}, sq = 0;
     const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
-    double *gr = c->grad + (size_t)i * c->stride * 3;
+    double *gr = c->grad + (size_t)i * c->stride * 3, *lp = c->lap + (size_t)i * c->stride;
     for (int k = 0; k < f->grid.count[i]; k++) {
         double r[3];
         double len = pair_vec(f, i, nb[k], r);
         rho += m * kernel_w(len, h);
         double s = len > 1e-12 * h ? kernel_dw(len, h) / len : 0;
+        lp[k] = m * s * len * len / (len * len + 0.01 * h * h);
         for (int a = 0; a < 3; a++) {
             gr[3 * k + a] = s * r[a];
             sum[a] += m * s * r[a];
@@ -466,42 +494,42 @@ static void strain_one(const stf_fluid *f, const double *u, int i, int with_wall
 }
 
 /* T . g for a symmetric tensor T stored as xx yy zz xy xz yz. */
-static void sym_dot(const double *T, const double *g, double s, double out[3])
+static __attribute__((unused)) void sym_dot(const double *T, const double *g, double s, double out[3])
 {
     out[0] += s * (T[0] * g[0] + T[3] * g[1] + T[4] * g[2]);
     out[1] += s * (T[3] * g[0] + T[1] * g[1] + T[5] * g[2]);
     out[2] += s * (T[4] * g[0] + T[5] * g[1] + T[2] * g[2]);
 }
 
-/* Viscous acceleration (Eq. 10 with sigma = rho nu D): sum_j m (nu_i D_i/rho_i +
- * nu_j D_j/rho_j) grad W_ij + (nu_i D_i / rho_i) G_w. */
-static void divergence_one(const stf_fluid *f, const double *D, int i, double *out)
+/* Viscous acceleration of the velocity field u: Morris et al.'s (1997) SPH Laplacian with
+ * the pair viscosity (mu_i + mu_j), mu = rho nu,
+ *   a_i = sum_j m (mu_i + mu_j) / (rho_i rho_j) (r_ij . grad W_ij) / (r^2 + 0.01 h^2) (u_i - u_j),
+ * plus the walls (mirror particles of viscosity mu_i moving with Morris' mirror velocity);
+ * the walls' own velocity enters only when with_walls (the affine part of the operator).
+ * This replaces the divergence of the SPH stress of Eq. 10 (see the file comment). */
+static void viscous_one(const stf_fluid *f, const double *u, int i, int with_walls, double *out)
 {
     const cy_state *c = f->cy;
-    double m = f->mass, a[3] = {0, 0, 0}, si = c->nu[i] / c->rho[i];
+    double a[3] = {0, 0, 0}, mi = c->rho[i] * c->nu[i];
     const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
-    const double *gr = c->grad + (size_t)i * c->stride * 3, *Di = D + 6 * i;
+    const double *lp = c->lap + (size_t)i * c->stride, *ui = u + 3 * i;
     for (int k = 0; k < f->grid.count[i]; k++) {
         int j = nb[k];
-        const double *Dj = D + 6 * j, *g = gr + 3 * k;
-        double sj = c->nu[j] / c->rho[j];
-        double T[6];
-        for (int e = 0; e < 6; e++) T[e] = si * Di[e] + sj * Dj[e];
-        sym_dot(T, g, m, a);
+        const double *uj = u + 3 * j;
+        double w = lp[k] * (mi + c->rho[j] * c->nu[j]) / (c->rho[i] * c->rho[j]);
+        for (int e = 0; e < 3; e++) a[e] += w * (ui[e] - uj[e]);
     }
-    sym_dot(Di, c->gw + 3 * i, si, a);
-    for (int e = 0; e < 3; e++) out[3 * i + e] = a[e];
+    double ww = c->nu[i] * (c->rho[i] + c->rho0) / (c->rho[i] * c->rho0);
+    for (int e = 0; e < 3; e++)
+        out[3 * i + e] = a[e] + ww * (c->lw[i] * ui[e] - (with_walls ? c->lwv[3 * i + e] : 0));
 }
 
 /* out = u - dt * (viscous acceleration of u without the walls' velocity). */
 static void apply_system(stf_fluid *f, const double *u, double dt, double *out)
 {
-    cy_state *c = f->cy;
     int n = f->n;
 #pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) strain_one(f, u, i, 0, c->D);
-#pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) divergence_one(f, c->D, i, out);
+    for (int i = 0; i < n; i++) viscous_one(f, u, i, 0, out);
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < 3 * n; i++) out[i] = u[i] - dt * out[i];
 }
@@ -541,9 +569,9 @@ static void viscosity_solve(stf_fluid *f, double dt)
 {
     cy_state *c = f->cy;
     int n = f->n, N = 3 * n;
-    viscosity_field(f, f->v); /* also leaves D(v**) with the walls' velocity in c->D */
+    viscosity_field(f, f->v);
 #pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) divergence_one(f, c->D, i, c->b);
+    for (int i = 0; i < n; i++) viscous_one(f, f->v, i, 1, c->b);
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < N; i++) c->b[i] *= dt;
     c->stats.viscosity_iterations = 0;
@@ -588,24 +616,23 @@ static void viscosity_solve(stf_fluid *f, double dt)
 /* ------------------------------------------------------------------ wall reactions */
 
 /* The impulses the walls gave the particles during the step go back to the colliders:
- * pressure -dt (sum k_i / rho_i) G and viscous dt (nu_i D_i / rho_i) G, D from the final v. */
+ * pressure -dt (sum k_i / rho_i) G and viscous dt (the wall part of viscous_one), the latter
+ * with the final velocity (the implicit step's). */
 static void wall_reactions(stf_fluid *f, double dt)
 {
     cy_state *c = f->cy;
     int n = f->n;
-    if (f->ncolliders == 0) return;
-#pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) strain_one(f, f->v, i, 1, c->D);
     for (int k = 0; k < f->ncolliders; k++) {
         collider *col = &f->colliders[k];
 #pragma omp parallel for schedule(static)
         for (int i = 0; i < n; i++) {
-            double G[3] = {0, 0, 0}, rho = 0, vb[3] = {0, 0, 0};
-            c->hit[i] = (char)wall_term(f, col, i, G, &rho, vb);
+            double G[3] = {0, 0, 0}, rho = 0, lap = 0, Gm[3] = {0, 0, 0}, vb[3] = {0, 0, 0};
+            c->hit[i] = (char)wall_term(f, col, i, G, &rho, &lap, Gm, vb);
             if (!c->hit[i]) continue;
-            double out[3] = {0, 0, 0}, ki = c->ktot[i] / c->rho[i];
-            sym_dot(c->D + 6 * i, G, c->nu[i] / c->rho[i], out);
-            for (int a = 0; a < 3; a++) c->dv[3 * i + a] = f->mass * dt * (out[a] - ki * G[a]);
+            double ki = c->ktot[i] / c->rho[i];
+            double ww = c->nu[i] * (c->rho[i] + c->rho0) / (c->rho[i] * c->rho0) * lap;
+            for (int a = 0; a < 3; a++)
+                c->dv[3 * i + a] = f->mass * dt * (ww * (f->v[3 * i + a] - vb[a]) - ki * G[a]);
         }
         collider_take_reaction(col, c->dv, f->x, c->hit, n);
     }

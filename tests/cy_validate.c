@@ -137,10 +137,131 @@ static int hydrostatic(void)
     return test_result("cy_validate hydrostatic");
 }
 
+/* --------------------------------------------------------------------- poiseuille */
+
+/* The steady profile between plates at z = 0 and z = Hc driven by a body force G along x:
+ * the shear stress at distance y from the mid-plane is G y (per unit density), so the shear
+ * rate solves nu(g) g = G |y| (bisection; nu(g) g grows with g for every n > 0), and
+ * u(y) = integral of g from |y| to Hc/2. Tabulated on m + 1 points, y = Hc/2 * k/m. */
+static void reference_profile(const stf_cy_def *cy, double G, double Hc, int m, double *u)
+{
+    double *gam = malloc((size_t)(m + 1) * sizeof *gam);
+    for (int k = 0; k <= m; k++) {
+        double tau = G * Hc / 2 * k / m, lo = 0, hi = 1;
+        while (stf_cy_viscosity(cy, hi) * hi < tau) hi *= 2;
+        for (int it = 0; it < 200; it++) {
+            double mid = 0.5 * (lo + hi);
+            if (stf_cy_viscosity(cy, mid) * mid < tau) lo = mid;
+            else hi = mid;
+        }
+        gam[k] = 0.5 * (lo + hi);
+    }
+    u[m] = 0; /* at the wall */
+    for (int k = m - 1; k >= 0; k--) u[k] = u[k + 1] + 0.5 * (gam[k] + gam[k + 1]) * Hc / 2 / m;
+    free(gam);
+}
+
+static double profile_at(const double *u, int m, double Hc, double z)
+{
+    double y = fabs(z - Hc / 2) / (Hc / 2) * m;
+    int k = (int)y;
+    if (k >= m) return u[m];
+    return u[k] + (y - k) * (u[k + 1] - u[k]);
+}
+
+static int poiseuille_case(const char *name, stf_cy_def cy, double G, double tol, double shape_tol)
+{
+    const double s = 0.02, Hc = 0.2, Lx = 0.16, Ly = 0.12, dt = 1e-3, T = 1.0;
+    stf_fluid_def d = cy_def(s);
+    d.cy = cy;
+    d.gravity[0] = G, d.gravity[1] = 0, d.gravity[2] = 0; /* the driving body force */
+    d.periodic[0] = Lx, d.periodic[1] = Ly;
+    stf_fluid *f = make(&d);
+    double rot[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1}, zero[3] = {0, 0, 0};
+    for (int w = 0; w < 2; w++) { /* floor z > 0 free; ceiling z < Hc free */
+        stf_collider_def c = stf_default_collider_def();
+        c.shape = STF_SHAPE_PLANE;
+        c.friction = 0;
+        c.normal[2] = w ? -1 : 1;
+        c.offset = w ? -Hc : 0;
+        char err[256];
+        int id = stf_fluid_add_collider(f, &c, err, sizeof err);
+        stf_fluid_set_collider_state(f, id, zero, rot, zero, zero);
+    }
+    stf_fluid_add_block(f, (double[3]){0, 0, 0}, (double[3]){Lx, Ly, Hc}, zero);
+    int n = stf_fluid_count(f), steps = (int)lround(T / dt), avg_from = steps - 200;
+    enum { NL = 10, M = 2000 };
+    double usum[NL] = {0}, zsum[NL] = {0}, cnt[NL] = {0}, cg = 0, res = 0;
+    double *x = malloc((size_t)n * 3 * sizeof *x), *v = malloc((size_t)n * 3 * sizeof *v);
+    for (int k = 0; k < steps; k++) {
+        if (stf_fluid_step(f, dt) != 0) {
+            fprintf(stderr, "%s: %s\n", name, stf_fluid_failure(f));
+            return 1;
+        }
+        stf_solver_stats st;
+        stf_fluid_solver_stats(f, &st);
+        cg += st.viscosity_iterations;
+        res = st.viscosity_residual > res ? st.viscosity_residual : res;
+        if (k < avg_from) continue;
+        stf_fluid_get_positions(f, x);
+        stf_fluid_get_velocities(f, v);
+        for (int i = 0; i < n; i++) {
+            int b = (int)(x[3 * i + 2] / Hc * NL);
+            if (b < 0 || b >= NL) continue;
+            usum[b] += v[3 * i], zsum[b] += x[3 * i + 2], cnt[b]++;
+        }
+    }
+    double u[M + 1];
+    reference_profile(&cy, G, Hc, M, u);
+    double worst = 0, shape = 0, ucen = 0, zc[NL], uc[NL];
+    for (int b = 0; b < NL; b++) {
+        zc[b] = cnt[b] ? zsum[b] / cnt[b] : 0;
+        uc[b] = cnt[b] ? usum[b] / cnt[b] : 0;
+        ucen = uc[b] > ucen ? uc[b] : ucen;
+    }
+    printf("poiseuille %s: n = %g, %d particles, %.1f CG iterations per step (tolerance %g, "
+           "worst final residual %.2g)\n   z (m)    u (m/s)   reference (m/s)\n",
+           name, cy.n, n, cg / steps, cy.cg_tolerance, res);
+    for (int b = 0; b < NL; b++) {
+        if (!cnt[b]) continue;
+        double z = zsum[b] / cnt[b], got = usum[b] / cnt[b], ref = profile_at(u, M, Hc, z);
+        double e = fabs(got - ref) / u[0];
+        worst = e > worst ? e : worst;
+        /* the shape: both profiles scaled to their own largest value */
+        double es = fabs(got / ucen - ref / profile_at(u, M, Hc, zc[NL / 2]));
+        shape = es > shape ? es : shape;
+        (void)uc;
+        printf("  %6.3f   %8.5f   %8.5f\n", z, got, ref);
+    }
+    printf("  worst |u - u_ref| / u_ref(centre) = %.3f (tolerance %.2f); shape (each scaled to its "
+           "largest value) off by %.3f (tolerance %.2f)\n", worst, tol, shape, shape_tol);
+    CHECK(worst < tol, "%s: profile off by %.3f of the centre velocity", name, worst);
+    CHECK(shape < shape_tol, "%s: profile shape off by %.3f", name, shape);
+    free(x), free(v);
+    stf_fluid_destroy(f);
+    return 0;
+}
+
+/* Newtonian (n = 1), shear thinning (n = 0.5) and shear thickening (n = 1.5) fluids, all
+ * through Eq. 3 with K = 10 s (K g >> 1 at the walls: power-law behaviour). */
+static int poiseuille(void)
+{
+    stf_cy_def base = stf_default_fluid_def().cy;
+    stf_cy_def newton = base, thin = base, thick = base;
+    newton.mu0 = newton.mu_inf = 0.1, newton.n = 1;
+    thin.mu0 = 1.0, thin.mu_inf = 0, thin.K = 10, thin.alpha = 2, thin.n = 0.5;
+    thick.mu0 = 0.05, thick.mu_inf = 0, thick.K = 10, thick.alpha = 2, thick.n = 1.5;
+    int rc = poiseuille_case("newtonian", newton, 2.0, 0.05, 0.03);
+    rc |= poiseuille_case("shear-thinning", thin, 2.0, 0.15, 0.05);
+    rc |= poiseuille_case("shear-thickening", thick, 2.0, 0.08, 0.05);
+    return rc ? rc : test_result("cy_validate poiseuille");
+}
+
 int main(int argc, char **argv)
 {
     const char *what = argc > 1 ? argv[1] : "";
     if (!strcmp(what, "hydrostatic")) return hydrostatic();
+    if (!strcmp(what, "poiseuille")) return poiseuille();
     fprintf(stderr, "usage: cy_validate hydrostatic|poiseuille|floating|stability|operator\n");
     return 2;
 }
