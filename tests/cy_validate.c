@@ -257,11 +257,130 @@ static int poiseuille(void)
     return rc ? rc : test_result("cy_validate poiseuille");
 }
 
+/* ----------------------------------------------------------------------- floating */
+
+/* A box of half the water's density in a pool, coupled through ode_glue (an ODE body; the
+ * fluid's wall impulses are its only support). After settling (viscous liquid, nu = 0.05
+ * m^2/s, so it comes to rest within the run) its draft must be Archimedes' H rho_b/rho_f
+ * within half a particle spacing. The draft is measured from the fluid volume: level =
+ * (N s^3 + draft A_box) / A_pool (the pool keeps its rest density to eta). */
+static int floating(void)
+{
+    const double s = 0.02, L = 0.32, depth = 0.14, H = 0.1, side = 0.16, dt = 1e-3;
+    stf_fluid_def d = cy_def(s);
+    d.cy.mu0 = d.cy.mu_inf = getenv("CY_MU") ? atof(getenv("CY_MU")) : 0.01;
+    stf_fluid *f = make(&d);
+    dInitODE2(0);
+    dWorldID w = dWorldCreate();
+    dSpaceID sp = dHashSpaceCreate(0);
+    dWorldSetGravity(w, 0, 0, d.gravity[2]);
+    stf_fluid_add_block(f, (double[3]){-L / 2, -L / 2, 0}, (double[3]){L / 2, L / 2, depth},
+                        (double[3]){0, 0, 0});
+    stf_ode *c = stf_ode_create(w, sp, f);
+    char err[256];
+    CHECK(stf_ode_attach_container(c, 0, (double[3]){0, 0, 0}, (double[3]){L, L, 3 * depth}, 0.02,
+                                   NULL, err, sizeof err) == 0, "%s", err);
+    const double rho_f = d.density, rho_b = 0.5 * rho_f;
+    dBodyID box = dBodyCreate(w);
+    dMass m;
+    dMassSetBoxTotal(&m, rho_b * side * side * H, side, side, H);
+    dBodySetMass(box, &m);
+    dBodySetPosition(box, 0, 0, depth + H / 2 + 0.005);
+    dGeomSetBody(dCreateBox(sp, side, side, H), box);
+    CHECK(stf_ode_attach_body(c, box, NULL, err, sizeof err) == 0, "%s", err);
+    stf_ode_remove_overlaps(c);
+    double zsum = 0, vmax = 0;
+    int zn = 0;
+    for (int k = 0; k < 2000; k++) {
+        if (stf_ode_step(c, dt) != 0) {
+            fprintf(stderr, "step %d: %s\n", k, stf_fluid_failure(f));
+            return 1;
+        }
+        if (getenv("CY_DEBUG") && k % 100 == 0) printf("  t %.2f box z %.4f\n", k * dt, dBodyGetPosition(box)[2]);
+        if (k >= 1500) {
+            zsum += dBodyGetPosition(box)[2], zn++;
+            double vz = fabs(dBodyGetLinearVel(box)[2]);
+            vmax = vz > vmax ? vz : vmax;
+        }
+    }
+    double zmean = zsum / zn, bottom = zmean - H / 2, A = L * L;
+    double vol = stf_fluid_count(f) * s * s * s;
+    double draft = (vol / A - bottom) / (1 - side * side / A), want = rho_b / rho_f * H;
+    printf("floating box (CY, via ode_glue): %d particles, draft %.4f m, Archimedes %.4f m, "
+           "error %.2f spacings (tolerance 0.5), largest |vz| over the last 0.5 s %.3g m/s\n",
+           stf_fluid_count(f), draft, want, (draft - want) / s, vmax);
+    CHECK(fabs(draft - want) < 0.5 * s, "draft %g m, Archimedes gives %g m", draft, want);
+    CHECK(vmax < 0.05, "the box is not at rest: %g m/s", vmax);
+    stf_ode_destroy(c);
+    stf_fluid_destroy(f);
+    dSpaceDestroy(sp);
+    dWorldDestroy(w);
+    dCloseODE();
+    return test_result("cy_validate floating");
+}
+
+/* ---------------------------------------------------------------------- stability */
+
+/* The paper's Fig. 4c/4d at test resolution: a column of a viscous shear-thickening fluid
+ * (nu0 = 0.2 m^2/s, nu_inf = 0, K = 1 s, alpha = 2, n = 1.5: shear thickening) falls into a box, dt =
+ * 3e-4 s. Explicit viscosity is unstable there (nu dt / (h/2)^2 >= 0.15, growing with the shear, above
+ * forward Euler's ~0.1): the run must stop with a failure naming the explicit viscosity.
+ * The implicit solve must run to the end with every speed below the free-fall speed from
+ * the column's top (sqrt(2 g H) ~ 2.7 m/s here, x1.5). */
+static int run_column(int solver, double dt, double T, char *why, size_t len, double *vmax_out)
+{
+    const double s = 0.02;
+    stf_fluid_def d = cy_def(s);
+    d.cy.mu0 = 0.2, d.cy.mu_inf = 0, d.cy.K = 1.0, d.cy.alpha = 2, d.cy.n = 1.5;
+    d.cy.viscosity_solver = solver;
+    stf_fluid *f = make(&d);
+    add_container(f, 0.15, 0.15, 0.3);
+    stf_fluid_add_block(f, (double[3]){-0.15, -0.15, 0}, (double[3]){-0.03, -0.03, 0.36},
+                        (double[3]){0, 0, 0});
+    int n = stf_fluid_count(f), steps = (int)lround(T / dt), rc = 0;
+    double *v = malloc((size_t)n * 3 * sizeof *v), vmax = 0;
+    why[0] = 0;
+    for (int k = 0; k < steps && rc == 0; k++) {
+        if (stf_fluid_step(f, dt) != 0) {
+            snprintf(why, len, "%s", stf_fluid_failure(f));
+            rc = -1;
+            break;
+        }
+        stf_fluid_get_velocities(f, v);
+        for (int i = 0; i < n; i++) {
+            double sp = sqrt(v[3 * i] * v[3 * i] + v[3 * i + 1] * v[3 * i + 1] + v[3 * i + 2] * v[3 * i + 2]);
+            vmax = sp > vmax ? sp : vmax;
+        }
+    }
+    *vmax_out = vmax;
+    free(v);
+    stf_fluid_destroy(f);
+    return rc;
+}
+
+static int stability(void)
+{
+    char why[512];
+    double vmax;
+    int rc = run_column(STF_VISCOSITY_EXPLICIT, 3e-4, 0.5, why, sizeof why, &vmax);
+    printf("stability: explicit, dt = 3e-4 s: %s\n", rc ? why : "ran to the end (unexpected)");
+    CHECK(rc != 0, "the explicit viscosity did not blow up at dt = 3e-4 s (max speed %g)", vmax);
+    CHECK(strstr(why, "viscosity (explicit)") != NULL, "failure does not name the explicit viscosity: %s", why);
+    rc = run_column(STF_VISCOSITY_IMPLICIT, 3e-4, 0.5, why, sizeof why, &vmax);
+    printf("stability: implicit, dt = 3e-4 s: %s, largest speed %.3f m/s (bound %.2f)\n",
+           rc ? why : "ran to the end", vmax, 1.5 * sqrt(2 * 9.81 * 0.36));
+    CHECK(rc == 0, "implicit failed: %s", why);
+    CHECK(vmax < 1.5 * sqrt(2 * 9.81 * 0.36), "implicit speed %g m/s", vmax);
+    return test_result("cy_validate stability");
+}
+
 int main(int argc, char **argv)
 {
     const char *what = argc > 1 ? argv[1] : "";
     if (!strcmp(what, "hydrostatic")) return hydrostatic();
     if (!strcmp(what, "poiseuille")) return poiseuille();
+    if (!strcmp(what, "floating")) return floating();
+    if (!strcmp(what, "stability")) return stability();
     fprintf(stderr, "usage: cy_validate hydrostatic|poiseuille|floating|stability|operator\n");
     return 2;
 }
