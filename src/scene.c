@@ -455,6 +455,9 @@ static int parse_fluid(loader *L, const mapv *top)
     if (f->h > 0 && (f->h < f->spacing || f->h > 5 * f->spacing))
         return fail_value(L, &m, "h", "must be 0 (= 2*spacing) or in [spacing, 5*spacing]");
     if (get_num(L, &m, "jitter", R_NONNEG, &f->jitter) < 0) return SCENE_BAD;
+    /* the Carreau-Yasuda projection turns a jittered lattice's density errors into velocity
+       (h (rho - rho0) / (rho0 dt) in one step): its blocks start on the lattice by default */
+    if (f->model == STF_MODEL_CARREAU_YASUDA && !has(&m, "jitter")) f->jitter = 0;
     if (f->jitter > 0.45) return fail_value(L, &m, "jitter", "must be in [0, 0.45]");
     return parse_blocks(L, &m);
 }
