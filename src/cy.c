@@ -10,10 +10,10 @@
  *      change -dt sum_j m (k_i/rho_i + k_j/rho_j) grad W_ij; repeated until the mean
  *      density error is below eta and at least min_pressure_iterations times -> v**;
  *   4. viscosity: strain rate D_i = L_i + L_i^T, L_i = (1/rho_i) sum_j m (v_j - v_i) (x)
- *      grad W_ij (Eq. 9, 22), nu_i = Carreau-Yasuda(g_i) (Eq. 3), g_i = sqrt(D_i:D_i / 2),
- *      acceleration sum_j m (nu_i D_i / rho_i + nu_j D_j / rho_j) grad W_ij (Eq. 10 with
- *      sigma = rho nu D); explicit (forward Euler) or implicit (backward Euler, nu frozen at
- *      its value from v**, solved matrix-free by conjugate gradients, Eq. 23-26);
+ *      grad W_ij (Eq. 9, 22), nu_i = Carreau-Yasuda(g_i) (Eq. 3), g_i = sqrt(D_i:D_i / 2);
+ *      viscous acceleration with the pair viscosity (see below); explicit (forward Euler)
+ *      or implicit (backward Euler, nu frozen at its value from v**, solved matrix-free by
+ *      conjugate gradients to |r| <= cg_tolerance |b|, Eq. 23-26);
  *   5. x += dt v; collisions with the shared collider stage; v from the position change.
  *
  * Choices where the text is garbled or silent (each one physically consistent):
@@ -27,16 +27,25 @@
  * - Shear rate: sqrt(D:D / 2), which is |du/dy| in simple shear (the paper's Frobenius norm
  *   sqrt(D:D) is sqrt(2) larger, which only rescales K).
  * - Eq. 24 as printed drops mu_inf and the "1 +"; the implicit step here keeps the full
- *   Eq. 3 and linearises by freezing nu over the step (one Picard step). With the gradient of
- *   Eq. 22 (1/rho_i in front) and the divergence of Eq. 10, the viscous operator is the
- *   negative of A^T N A (A the strain map, N = diag(V nu)), so I - dt (viscous operator) is
- *   symmetric positive definite and conjugate gradients apply.
+ *   Eq. 3 and linearises by freezing nu over the step (one Picard step).
+ * - The viscous force is Morris et al.'s (1997) SPH Laplacian with the pair viscosity
+ *   mu_i + mu_j (the usual generalised-Newtonian SPH form), not the divergence of the SPH
+ *   stress of Eq. 10: that is a first derivative of a first derivative, blind to velocities
+ *   alternating from particle to particle; with it, plane Poiseuille flow came out with
+ *   layers alternating and 4x too fast (measured). Morris' operator is symmetric negative
+ *   semi-definite (pair weights m (mu_i + mu_j) (r.grad W) / (rho_i rho_j (r^2 + 0.01 h^2))),
+ *   so I - dt (viscous operator) is symmetric positive definite and CG applies. For the
+ *   plane shear flows of the tests it is exact: div(mu grad v) = div(mu D) there.
+ * - The projection is Jacobi with the full k_i of Eq. 21 (no relaxation), from zero
+ *   pressure each step, as Algorithm 1.
  * - Walls (any collider: container, ODE bodies) are a half-space of lattice particles at
  *   rest density that move with the solid (tabulated by distance, as the Clavet model's
  *   mirror particles in pressure.c): they add to density and S_i, take part in the
- *   projection with the particle's own k_i, and in the strain rate with the solid's velocity
- *   (no slip). Every velocity change they cause is an impulse the collider receives back,
- *   which is how ODE bodies feel buoyancy and drag.
+ *   projection with the particle's own k_i, in the strain rate with the solid's velocity, and
+ *   in the viscous force with Morris' mirror velocity (zero relative velocity on the surface:
+ *   no slip). Every velocity change they cause is an impulse the collider receives back,
+ *   which is how ODE bodies feel buoyancy and drag. Where two walls meet, both count
+ *   (the corner's lattice twice).
  */
 #include "cy.h"
 
@@ -47,15 +56,6 @@
 #include <string.h>
 
 #define PI 3.14159265358979323846
-#ifndef CY_WARM
-#define CY_WARM 0
-#endif
-#ifndef CY_TWO_SIDED
-#define CY_TWO_SIDED 0
-#endif
-#ifndef CY_RELAX
-#define CY_RELAX 1.0
-#endif
 
 typedef struct cy_state {
     int cap;             /* particles the arrays hold */
@@ -71,11 +71,7 @@ typedef struct cy_state {
     double *nu;          /* n: kinematic viscosity of the step, m^2/s */
     double *vel;         /* 3n: v** */
     double *b, *dv, *r, *p, *Ap; /* 3n each: viscosity solve */
-    double *kprev;       /* by particle id: the pressure (k summed) of the last step, m^2/s^2 */
-    int kprev_cap;
-    double dt_prev;      /* s: the step kprev belongs to */
     double *lap;         /* cap * stride: m (r.grad W)/(r^2 + 0.01 h^2) per pair, kg/m^5 */
-    double wall_gradm[WALL_BINS + 1]; /* wall_grad with Morris' mirror velocity weights */
     double wall_lap[WALL_BINS + 1]; /* the same summed over a wall's lattice, with Morris'
                                        mirror velocity (see tables), by distance */
     double *lw;          /* n: sum over walls of wall_lap */
@@ -182,9 +178,8 @@ static void tables(stf_fluid *f, cy_state *c)
             for (int e = -k; e <= k; e++)
                 sum += kernel_w(s * sqrt((double)(a * a + b * b + e * e)), h);
     c->rho0 = m * sum;
-    c->dt_prev = 1;
     for (int bin = 0; bin <= WALL_BINS; bin++) {
-        double d = h * bin / WALL_BINS, rho = 0, grad = 0, lap = 0, gradm = 0;
+        double d = h * bin / WALL_BINS, rho = 0, grad = 0, lap = 0;
         double dd = d > 0.05 * s ? d : 0.05 * s;
         for (int layer = 0; layer <= k; layer++)
             for (int a = -k; a <= k; a++)
@@ -200,10 +195,8 @@ static void tables(stf_fluid *f, cy_state *c)
                     double depth = s * (0.5 + layer), ratio = depth / dd;
                     lap += m * kernel_dw(r, h) * r / (r * r + 0.01 * h * h) *
                            (1 + (ratio < 1.5 ? ratio : 1.5));
-                    gradm += -m * kernel_dw(r, h) * dz / r * (1 + (ratio < 1.5 ? ratio : 1.5));
                 }
         c->wall_lap[bin] = lap;
-        c->wall_gradm[bin] = gradm;
         c->wall_rho[bin] = rho;
         c->wall_grad[bin] = grad;
     }
@@ -233,7 +226,6 @@ void cy_free(stf_fluid *f)
     free(c->lap);
     free(c->lw);
     free(c->lwv);
-    free(c->kprev);
     free(c->hit);
     free(c);
     f->cy = NULL;
@@ -257,20 +249,13 @@ static int reserve(stf_fluid *f, int n)
     }
     c->stride = f->grid.stride;
     size_t N = (size_t)n;
-    if (n <= c->cap && f->next_id <= c->kprev_cap) return 0;
+    if (n <= c->cap) return 0;
     if (grow(&c->rho, N) || grow(&c->S, N) || grow(&c->kappa, N) || grow(&c->ktot, N) ||
         grow(&c->rhostar, N) || grow(&c->gw, 3 * N) || grow(&c->qw, N) || grow(&c->wv, 9 * N) ||
         grow(&c->D, 6 * N) || grow(&c->nu, N) || grow(&c->vel, 3 * N) || grow(&c->b, 3 * N) ||
         grow(&c->dv, 3 * N) || grow(&c->r, 3 * N) || grow(&c->p, 3 * N) || grow(&c->Ap, 3 * N) ||
         grow(&c->lw, N) || grow(&c->lwv, 3 * N))
         return -1;
-    if (f->next_id > c->kprev_cap) {
-        double *k = realloc(c->kprev, (size_t)f->next_id * sizeof *k);
-        if (!k) return -1;
-        for (int i = c->kprev_cap; i < f->next_id; i++) k[i] = 0;
-        c->kprev = k;
-        c->kprev_cap = f->next_id;
-    }
     char *hit = realloc(c->hit, N);
     if (!hit) return -1;
     c->hit = hit;
@@ -281,13 +266,12 @@ static int reserve(stf_fluid *f, int n)
 /* ----------------------------------------------------------------------------- walls */
 
 /* Wall sums at distance d from a flat wall: density and the normal gradient magnitude. */
-static void wall_at(const cy_state *c, double d, double h, double *rho, double *grad, double *lap,
-                    double *gradm)
+static void wall_at(const cy_state *c, double d, double h, double *rho, double *grad, double *lap)
 {
     double u = d / h * WALL_BINS;
     if (u < 0) u = 0;
     if (u >= WALL_BINS) {
-        *rho = *grad = *lap = *gradm = 0;
+        *rho = *grad = *lap = 0;
         return;
     }
     int b = (int)u;
@@ -295,13 +279,12 @@ static void wall_at(const cy_state *c, double d, double h, double *rho, double *
     *rho = (1 - t) * c->wall_rho[b] + t * c->wall_rho[b + 1];
     *grad = (1 - t) * c->wall_grad[b] + t * c->wall_grad[b + 1];
     *lap = (1 - t) * c->wall_lap[b] + t * c->wall_lap[b + 1];
-    *gradm = (1 - t) * c->wall_gradm[b] + t * c->wall_gradm[b + 1];
 }
 
 /* Collider k's wall term at particle i: returns 1 within h, with G = sum_b m grad W_ib
  * (pointing into the solid), the density it adds and the solid's velocity there. */
 static int wall_term(const stf_fluid *f, const collider *col, int i, double G[3], double *rho,
-                     double *lap, double Gm[3], double vb[3])
+                     double *lap, double vb[3])
 {
     const double *x = f->x + 3 * i;
     double h = f->h;
@@ -310,11 +293,11 @@ static int wall_term(const stf_fluid *f, const collider *col, int i, double G[3]
         for (int a = 0; a < 3; a++) d2 += (x[a] - col->pos[a]) * (x[a] - col->pos[a]);
         if (d2 > (col->bound + h) * (col->bound + h)) return 0;
     }
-    double nrm[3], g, gm;
+    double nrm[3], g;
     double d = collider_sdf(col, x, nrm);
     if (d >= h) return 0;
-    wall_at(f->cy, d, h, rho, &g, lap, &gm);
-    for (int a = 0; a < 3; a++) G[a] = -g * nrm[a], Gm[a] = -gm * nrm[a];
+    wall_at(f->cy, d, h, rho, &g, lap);
+    for (int a = 0; a < 3; a++) G[a] = -g * nrm[a];
     collider_velocity_at(col, x, vb);
     return 1;
 }
@@ -327,8 +310,8 @@ static void walls_one(stf_fluid *f, int i)
     memset(wv, 0, 9 * sizeof *wv);
     memset(lwv, 0, 3 * sizeof *lwv);
     for (int k = 0; k < f->ncolliders; k++) {
-        double G[3] = {0, 0, 0}, r = 0, lap = 0, Gm[3] = {0, 0, 0}, vb[3] = {0, 0, 0};
-        if (!wall_term(f, &f->colliders[k], i, G, &r, &lap, Gm, vb)) continue;
+        double G[3] = {0, 0, 0}, r = 0, lap = 0, vb[3] = {0, 0, 0};
+        if (!wall_term(f, &f->colliders[k], i, G, &r, &lap, vb)) continue;
         rho += r;
         lw += lap;
         for (int a = 0; a < 3; a++) lwv[a] += lap * vb[a];
@@ -428,10 +411,10 @@ static void pressure_apply(stf_fluid *f, double dt)
     for (int i = 0; i < n; i++) c->rhostar[i] = predict_one(f, v, i, dt);
 }
 
-/* Algorithm 1. Two departures, both for a fluid at rest to stay at rest: the iteration
- * starts from the last step's pressure of each particle (warm start; Algorithm 1 starts
- * from zero and needs ~ one iteration per particle layer to carry a column's weight), and a
- * correction may lower a particle's pressure, but never below zero. */
+/* Algorithm 1: k_i from Eq. 21 for every particle (Jacobi), applied together, until the mean
+ * compression is below eta and at least min_pressure_iterations were done. Each step starts
+ * from zero pressure, as the paper's. (Starting from the last step's pressures and letting a
+ * correction lower them was tried: it made a fluid at rest unstable within 0.4 s.) */
 static void pressure_project(stf_fluid *f, double dt)
 {
     cy_state *c = f->cy;
@@ -440,24 +423,19 @@ static void pressure_project(stf_fluid *f, double dt)
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) {
         c->ktot[i] = 0;
-        c->kappa[i] = CY_WARM ? c->kprev[f->id[i]] : 0;
+        c->rhostar[i] = predict_one(f, f->v, i, dt);
     }
-    pressure_apply(f, dt);
     do {
 #pragma omp parallel for schedule(static)
-        for (int i = 0; i < n; i++) { /* Eq. 21 */
+        for (int i = 0; i < n; i++) { /* Eq. 21; only compression is corrected */
             double k = c->S[i] > 0 ? (c->rhostar[i] - c->rho0) * c->rho[i] / (dt * dt * c->S[i]) : 0;
-            k *= CY_RELAX;
-            c->kappa[i] = k > -c->ktot[i] ? k : -c->ktot[i];
-            if (!CY_TWO_SIDED && c->kappa[i] < 0) c->kappa[i] = 0;
+            c->kappa[i] = k > 0 ? k : 0;
         }
         pressure_apply(f, dt);
         err = mean_error(f);
         iter++;
     } while ((err > f->def.cy.eta || iter < f->def.cy.min_pressure_iterations) &&
              iter < f->def.cy.max_pressure_iterations);
-    for (int i = 0; i < n; i++) c->kprev[f->id[i]] = c->ktot[i];
-    c->dt_prev = dt;
     c->stats.pressure_iterations = iter;
     c->stats.density_error = err;
 }
@@ -626,8 +604,8 @@ static void wall_reactions(stf_fluid *f, double dt)
         collider *col = &f->colliders[k];
 #pragma omp parallel for schedule(static)
         for (int i = 0; i < n; i++) {
-            double G[3] = {0, 0, 0}, rho = 0, lap = 0, Gm[3] = {0, 0, 0}, vb[3] = {0, 0, 0};
-            c->hit[i] = (char)wall_term(f, col, i, G, &rho, &lap, Gm, vb);
+            double G[3] = {0, 0, 0}, rho = 0, lap = 0, vb[3] = {0, 0, 0};
+            c->hit[i] = (char)wall_term(f, col, i, G, &rho, &lap, vb);
             if (!c->hit[i]) continue;
             double ki = c->ktot[i] / c->rho[i];
             double ww = c->nu[i] * (c->rho[i] + c->rho0) / (c->rho[i] * c->rho0) * lap;
