@@ -1,6 +1,8 @@
 /* fluid.c - creation, particles, and the step of the paper's Algorithm 1. */
 #include "fluid.h"
 
+#include "cy.h"
+
 #include <math.h>
 #include <omp.h>
 #include <stdio.h>
@@ -33,6 +35,11 @@ stf_fluid_def stf_default_fluid_def(void)
     d.terms = 16;
     d.stick = 200.0;
     d.jitter = 0.2;
+    d.model = STF_MODEL_CLAVET_STF;
+    d.cy = (stf_cy_def){.mu0 = 1e-3, .mu_inf = 1e-3, .K = 1.0, .alpha = 2.0, .n = 1.0,
+                        .eta = 0.01, .min_pressure_iterations = 2, .max_pressure_iterations = 100,
+                        .viscosity_solver = STF_VISCOSITY_IMPLICIT, .cg_tolerance = 1e-4,
+                        .max_cg_iterations = 200};
     return d;
 }
 
@@ -64,6 +71,12 @@ static int check_def(const stf_fluid_def *d, char *err, size_t errlen)
     const unsigned all = STF_EFFECT_GRAVITY | STF_EFFECT_VISCOSITY | STF_EFFECT_PRESSURE |
                          STF_EFFECT_SPRINGS | STF_EFFECT_HISTORY | STF_EFFECT_BOUNDARY_STICK;
     if (d->effects & ~all) FAIL("effects: unknown effect bits 0x%x", d->effects & ~all);
+    if (d->model != STF_MODEL_CLAVET_STF && d->model != STF_MODEL_CARREAU_YASUDA)
+        FAIL("model: must be clavet_stf or carreau_yasuda (got %d)", d->model);
+    if (d->model == STF_MODEL_CARREAU_YASUDA && cy_check_def(d, err, errlen) != 0) return -1;
+    for (int a = 0; a < 3; a++)
+        if (d->model != STF_MODEL_CARREAU_YASUDA && d->periodic[a] != 0)
+            FAIL("periodic: only the carreau_yasuda model has periodic axes");
     if (!(d->spacing > 0 && isfinite(d->spacing))) FAIL("spacing: must be > 0 (got %g)", d->spacing);
     if (!(d->density > 0 && isfinite(d->density))) FAIL("density: must be > 0 (got %g)", d->density);
     if (!(d->h == 0 || (d->h >= d->spacing && d->h <= 5 * d->spacing)))
@@ -148,6 +161,10 @@ int stf_fluid_create(const stf_fluid_def *def, stf_fluid **out, char *err, size_
     if (def->rest_density > 0) f->rest_density = def->rest_density;
     f->reorder_interval = 16;
     pressure_wall_table(f);
+    if (def->model == STF_MODEL_CARREAU_YASUDA && cy_create(f) != 0) {
+        free(f);
+        FAIL("out of memory");
+    }
     *out = f;
     return 0;
 }
@@ -165,6 +182,7 @@ void stf_fluid_destroy(stf_fluid *f)
     free(f->rho_near);
     free(f->khist_mean);
     grid_free(&f->grid);
+    cy_free(f);
     if (f->springs.n_alloc) springs_free(&f->springs);
     if (f->hist.n_alloc) history_free(&f->hist);
     for (int k = 0; k < f->ncolliders; k++) collider_free(&f->colliders[k]);
@@ -375,7 +393,7 @@ static int first_bad(const stf_fluid *f, double vmax)
     return bad < f->n ? bad : -1;
 }
 
-static int check(stf_fluid *f, const char *effect)
+int fluid_check(stf_fluid *f, const char *effect)
 {
     double vmax = 10.0 * f->h / f->dt_now;
     int i = first_bad(f, vmax);
@@ -437,6 +455,7 @@ int stf_fluid_step(stf_fluid *f, double dt)
         memset(f->colliders[k].impulse, 0, sizeof f->colliders[k].impulse);
         memset(f->colliders[k].moment, 0, sizeof f->colliders[k].moment);
     }
+    if (f->cy) return cy_step(f, dt);
     if (has(f, STF_EFFECT_HISTORY) && f->hist.w == NULL && start_history(f, dt) != 0) goto oom;
     TIMED(STAGE_GRID, {
         /* Particles are re-sorted by cell (memory locality) when the neighbour candidates
@@ -459,7 +478,7 @@ int stf_fluid_step(stf_fluid *f, double dt)
     }
     if (has(f, STF_EFFECT_VISCOSITY)) {
         TIMED(STAGE_VISCOSITY, viscosity_apply(f, dt));
-        if (check(f, "viscosity")) return -1;
+        if (fluid_check(f, "viscosity")) return -1;
     }
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < 3 * n; i++) {
@@ -470,19 +489,19 @@ int stf_fluid_step(stf_fluid *f, double dt)
         int rc = 0;
         TIMED(STAGE_SPRINGS, rc = springs_step(f, dt));
         if (rc != 0) goto oom;
-        if (check(f, has(f, STF_EFFECT_HISTORY) ? "history springs" : "springs")) return -1;
+        if (fluid_check(f, has(f, STF_EFFECT_HISTORY) ? "history springs" : "springs")) return -1;
     }
     if (has(f, STF_EFFECT_PRESSURE)) {
         TIMED(STAGE_PRESSURE, pressure_relax(f, dt));
-        if (check(f, "pressure")) return -1;
+        if (fluid_check(f, "pressure")) return -1;
     }
     TIMED(STAGE_COLLIDE, collide_all(f, dt));
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < 3 * n; i++) f->v[i] = (f->x[i] - f->xprev[i]) / dt;
-    if (check(f, "collisions")) return -1;
+    if (fluid_check(f, "collisions")) return -1;
     if (has(f, STF_EFFECT_BOUNDARY_STICK)) {
         TIMED(STAGE_BOUNDARY, boundary_stick(f, dt));
-        if (check(f, "boundary_stick")) return -1;
+        if (fluid_check(f, "boundary_stick")) return -1;
     }
     f->time += dt;
     f->steps++;
@@ -551,6 +570,16 @@ double stf_fluid_effect_seconds(const stf_fluid *f, unsigned effect)
 int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
 {
     const stf_fluid_def *d = &f->def;
+    if (f->cy) {
+        int k = snprintf(buf, len,
+                         "effects: [%s]\nspacing: %.9g  # m\nh: %.9g  # m\ndensity: %.9g  # kg/m^3\n"
+                         "particle_mass: %.9g  # kg\njitter: %.9g  # spacings\n"
+                         "gravity: [%.9g, %.9g, %.9g]  # m/s^2\n",
+                         has(f, STF_EFFECT_GRAVITY) ? "gravity" : "", d->spacing, f->h, d->density,
+                         f->mass, d->jitter, d->gravity[0], d->gravity[1], d->gravity[2]);
+        size_t used = k > 0 && (size_t)k < len ? (size_t)k : len;
+        return k + cy_describe(f, buf + used, len - used);
+    }
     static const char *const names[] = {"gravity", "viscosity", "pressure", "springs", "history",
                                         "boundary_stick"};
     char effects[128] = "";

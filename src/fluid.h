@@ -51,6 +51,8 @@ struct stf_fluid {
     int ncolliders, collider_cap;
     collider *colliders;
 
+    struct cy_state *cy; /* Carreau-Yasuda solver (cy.c), NULL for the Clavet model */
+
     double time;
     double dt_now;       /* length of the step being taken, s */
     long steps;
@@ -66,6 +68,10 @@ void pressure_relax(stf_fluid *f, double dt);                /* pressure.c */
 void pressure_wall_table(stf_fluid *f);                       /* pressure.c */
 void collide_all(stf_fluid *f, double dt);                   /* collider.c */
 void boundary_stick(stf_fluid *f, double dt);                /* boundary.c */
+
+/* Checks every particle after a stage named effect; on a blow-up or NaN writes the failure
+ * message and returns -1. */
+int fluid_check(stf_fluid *f, const char *effect);
 
 /* Permutes every per-particle array by perm (new index -> old index). Returns 0, or -1
  * when out of memory (then nothing has moved, unless the history ring's copy failed). */

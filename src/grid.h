@@ -33,6 +33,12 @@ typedef struct stf_grid {
     double href;       /* h at the last rebuild, m */
     int valid;         /* 0: rebuild the candidates at the next grid_build (set on reorder) */
     long rebuilds, builds; /* statistics */
+    /* Periodic axes (set by the owner before building; zero: not periodic): along axis a
+       with period[a] > 0 (>= 3 cells) cells wrap with that period from origin[a], and
+       neighbours are found by the nearest image. */
+    double period[3];  /* m */
+    double origin[3];  /* m */
+    int ncell[3];      /* cells along a periodic axis */
 } stf_grid;
 
 /* Rebuilds buckets and neighbour lists for n particles at x (3n) with radius h.

@@ -263,6 +263,22 @@ int stf_h5_write_frame(stf_h5 *h, double t, int n, const double *xyz, const doub
     return rc;
 }
 
+int stf_h5_frame_attr_double(stf_h5 *h, const char *name, double value)
+{
+    if (bad_args(h, name)) return -1;
+    if (h->nframes < 1) {
+        snprintf(h->err, sizeof h->err, "attribute %s: no frame written yet", name);
+        return -1;
+    }
+    char gname[32];
+    snprintf(gname, sizeof gname, FRAME_PREFIX "%d", h->nframes - 1);
+    hid_t g = H5Gopen2(h->file, gname, H5P_DEFAULT);
+    int rc = g >= 0 && put_attr(g, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, &value) == 0 ? 0 : -1;
+    close_id(g);
+    if (rc != 0) snprintf(h->err, sizeof h->err, "cannot write attribute %s of %s", name, gname);
+    return rc;
+}
+
 /* Opens group name under parent, creating it if absent. */
 static hid_t open_or_create_group(hid_t parent, const char *name, int *created)
 {

@@ -40,6 +40,10 @@ int stf_h5_attr_long(stf_h5 *h, const char *name, long value);
 int stf_h5_write_frame(stf_h5 *h, double t, int n, const double *xyz, const double *v,
                        const float *khist, const int32_t *id);
 
+/* A double attribute on the last frame written (solver statistics of the steps since the
+ * frame before). Returns 0 or -1. */
+int stf_h5_frame_attr_double(stf_h5 *h, const char *name, double value);
+
 /* Appends one row to /bodies/NAME (created on first call). NAME must not contain '/'.
  * Flushes. Returns 0 or -1. */
 int stf_h5_body_append(stf_h5 *h, const char *name, double t, const double pos[3],

@@ -438,7 +438,7 @@ static int parse_blocks(loader *L, const mapv *fluid)
 static int parse_fluid(loader *L, const mapv *top)
 {
     static const char *const keys[] = {"model", "spacing", "density", "h", "jitter", "blocks", NULL};
-    static const char *const models[] = {"clavet_stf", NULL};
+    static const char *const models[] = {"clavet_stf", "carreau_yasuda", NULL};
     stf_fluid_def *f = &L->s->fluid;
     struct fy_node *k, *v = lookup(top, "fluid", &k);
     mapv m;
@@ -446,6 +446,8 @@ static int parse_fluid(loader *L, const mapv *top)
     if (!k) return missing(L, top, "fluid", NULL);
     if (open_map(L, v, k, "fluid", keys, &m)) return SCENE_BAD;
     if (get_choice(L, &m, "model", models, &model) < 0) return SCENE_BAD;
+    if (has(&m, "model"))
+        f->model = model ? STF_MODEL_CARREAU_YASUDA : STF_MODEL_CLAVET_STF;
     if (need_num(L, &m, "spacing", R_POS, &f->spacing)) return SCENE_BAD;
     if (f->spacing > 1) return fail_value(L, &m, "spacing", "must be > 0 and <= 1");
     if (get_num(L, &m, "density", R_POS, &f->density) < 0) return SCENE_BAD;
@@ -453,6 +455,9 @@ static int parse_fluid(loader *L, const mapv *top)
     if (f->h > 0 && (f->h < f->spacing || f->h > 5 * f->spacing))
         return fail_value(L, &m, "h", "must be 0 (= 2*spacing) or in [spacing, 5*spacing]");
     if (get_num(L, &m, "jitter", R_NONNEG, &f->jitter) < 0) return SCENE_BAD;
+    /* the Carreau-Yasuda projection turns a jittered lattice's density errors into velocity
+       (h (rho - rho0) / (rho0 dt) in one step): its blocks start on the lattice by default */
+    if (f->model == STF_MODEL_CARREAU_YASUDA && !has(&m, "jitter")) f->jitter = 0;
     if (f->jitter > 0.45) return fail_value(L, &m, "jitter", "must be in [0, 0.45]");
     return parse_blocks(L, &m);
 }
@@ -484,6 +489,35 @@ static int parse_history(loader *L, const mapv *h)
     return 0;
 }
 
+/* effects.carreau_yasuda: the second paper's model (needs fluid.model: carreau_yasuda). */
+static int parse_carreau_yasuda(loader *L, const mapv *p)
+{
+    static const char *const solvers[] = {"implicit", "explicit", NULL};
+    stf_cy_def *c = &L->s->fluid.cy;
+    long it;
+    int r, solver;
+    if (get_num(L, p, "mu0", R_NONNEG, &c->mu0) < 0 ||
+        get_num(L, p, "mu_inf", R_NONNEG, &c->mu_inf) < 0 ||
+        get_num(L, p, "K", R_NONNEG, &c->K) < 0 || get_num(L, p, "alpha", R_POS, &c->alpha) < 0 ||
+        get_num(L, p, "n", R_POS, &c->n) < 0 || get_num(L, p, "eta", R_OPEN_UNIT, &c->eta) < 0 ||
+        get_num(L, p, "cg_tolerance", R_OPEN_UNIT, &c->cg_tolerance) < 0)
+        return SCENE_BAD;
+    if ((r = get_int(L, p, "min_pressure_iterations", 1, 10000, &it)) < 0) return SCENE_BAD;
+    if (r) c->min_pressure_iterations = (int)it;
+    if ((r = get_int(L, p, "max_pressure_iterations", 1, 10000, &it)) < 0) return SCENE_BAD;
+    if (r) c->max_pressure_iterations = (int)it;
+    if (c->max_pressure_iterations < c->min_pressure_iterations)
+        return fail_value(L, p, has(p, "max_pressure_iterations") ? "max_pressure_iterations"
+                                                                   : "min_pressure_iterations",
+                          "max_pressure_iterations must be >= min_pressure_iterations");
+    if ((r = get_int(L, p, "max_cg_iterations", 1, 100000, &it)) < 0) return SCENE_BAD;
+    if (r) c->max_cg_iterations = (int)it;
+    if (get_choice(L, p, "viscosity_solver", solvers, &solver) < 0) return SCENE_BAD;
+    if (has(p, "viscosity_solver"))
+        c->viscosity_solver = solver ? STF_VISCOSITY_EXPLICIT : STF_VISCOSITY_IMPLICIT;
+    return 0;
+}
+
 /* Reads the params of one effect; e is its index in the effect table. */
 static int parse_effect_params(loader *L, int e, const mapv *p)
 {
@@ -505,6 +539,8 @@ static int parse_effect_params(loader *L, int e, const mapv *p)
         return get_num(L, p, "plasticity", R_NONNEG, &f->plasticity) < 0 ? SCENE_BAD : 0;
     case 4:
         return parse_history(L, p);
+    case 6:
+        return parse_carreau_yasuda(L, p);
     default:
         return get_num(L, p, "stick", R_NONNEG, &f->stick) < 0 ? SCENE_BAD : 0;
     }
@@ -516,16 +552,23 @@ static const char *const pressure_keys[] = {"k", "k_near", "rest_density", "tens
 static const char *const springs_keys[] = {"k_min", "yield_ratio", "plasticity", NULL};
 static const char *const history_keys[] = {"q", "d", "memory", "k_hist", "mode", "reference_spacing", "terms", "k_onset", NULL};
 static const char *const stick_keys[] = {"stick", NULL};
+static const char *const cy_keys[] = {"mu0", "mu_inf", "K", "alpha", "n", "eta",
+                                      "min_pressure_iterations", "max_pressure_iterations",
+                                      "viscosity_solver", "cg_tolerance", "max_cg_iterations",
+                                      NULL};
 
 static int parse_effects(loader *L, const mapv *top)
 {
-    static const char *const names[] = {"gravity", "viscosity",      "pressure", "springs",
-                                        "history", "boundary_stick", NULL};
+    static const char *const names[] = {"gravity", "viscosity",      "pressure",
+                                        "springs", "history",        "boundary_stick",
+                                        "carreau_yasuda", NULL};
+    /* carreau_yasuda holds the parameters of fluid.model carreau_yasuda: no effect bit */
     static const unsigned bits[] = {STF_EFFECT_GRAVITY,  STF_EFFECT_VISCOSITY,
                                     STF_EFFECT_PRESSURE, STF_EFFECT_SPRINGS,
-                                    STF_EFFECT_HISTORY,  STF_EFFECT_BOUNDARY_STICK};
+                                    STF_EFFECT_HISTORY,  STF_EFFECT_BOUNDARY_STICK, 0};
     static const char *const *const params[] = {gravity_keys, viscosity_keys, pressure_keys,
-                                                springs_keys, history_keys,   stick_keys};
+                                                springs_keys, history_keys,   stick_keys,
+                                                cy_keys};
     struct fy_node *k, *v = lookup(top, "effects", &k);
     mapv m, p;
     char path[64];
@@ -542,6 +585,14 @@ static int parse_effects(loader *L, const mapv *top)
     }
     if (has(&m, "history") && !has(&m, "springs"))
         return fail_key(L, &m, "history", "needs effects.springs");
+    int cy = L->s->fluid.model == STF_MODEL_CARREAU_YASUDA;
+    if (has(&m, "carreau_yasuda") && !cy)
+        return fail_key(L, &m, "carreau_yasuda", "needs fluid.model: carreau_yasuda");
+    for (int e = 1; cy && e < 6; e++) {
+        if (has(&m, names[e]))
+            return fail_key(L, &m, names[e],
+                            "not part of fluid.model carreau_yasuda (allowed: gravity, carreau_yasuda)");
+    }
     return 0;
 }
 

@@ -45,6 +45,45 @@ enum stf_history_mode {
                                exponentials: O(terms) time and memory per particle */
 };
 
+/* Fluid models (stf_fluid_def.model, scene key fluid.model). */
+enum stf_model {
+    STF_MODEL_CLAVET_STF = 0,     /* Clavet SPH + history springs (first paper) */
+    STF_MODEL_CARREAU_YASUDA = 1, /* Carreau-Yasuda SPH with pressure projection (second paper) */
+};
+
+enum stf_viscosity_solver {
+    STF_VISCOSITY_IMPLICIT = 0, /* backward Euler, conjugate gradients (Algorithm 2) */
+    STF_VISCOSITY_EXPLICIT = 1, /* forward Euler (for comparison; limited by dt ~ h^2/nu) */
+};
+
+/* Carreau-Yasuda SPH (second paper): cubic spline kernel of support h, per-particle
+ * stiffness pressure projection (Eq. 11-21), viscosity nu(g) = nu_inf + (nu0 - nu_inf)
+ * (1 + (K g)^a)^((n-1)/a) (Eq. 3) on the shear rate g = sqrt(D:D / 2), D = grad v + grad v^T. */
+typedef struct stf_cy_def {
+    double mu0;            /* zero-shear kinematic viscosity, m^2/s (>= 0; the paper's mu_0) */
+    double mu_inf;         /* infinite-shear kinematic viscosity, m^2/s (>= 0) */
+    double K;              /* time constant, s (>= 0): where the shear dependence sets in */
+    double alpha;          /* transition smoothness a, dimensionless (> 0) */
+    double n;              /* power index: 1 Newtonian, < 1 shear thinning, > 1 thickening (> 0) */
+    double eta;            /* pressure projection: mean density error tolerance, fraction (> 0) */
+    int min_pressure_iterations; /* >= 1; the paper uses 2 */
+    int max_pressure_iterations; /* >= min; reached means "not converged" in the stats */
+    int viscosity_solver;  /* enum stf_viscosity_solver */
+    double cg_tolerance;   /* implicit viscosity: stop at |residual| <= tol |rhs| (> 0) */
+    int max_cg_iterations; /* >= 1 */
+} stf_cy_def;
+
+/* What the Carreau-Yasuda solver did in the last step (zeros for the Clavet model). */
+typedef struct stf_solver_stats {
+    int pressure_iterations;  /* pressure projection iterations */
+    double density_error;     /* mean (rho* - rho0)/rho0 over particles (compression only)
+                                 after the last iteration, fraction */
+    int viscosity_iterations; /* conjugate gradient iterations (0 explicit) */
+    double viscosity_residual;/* final |residual| / |rhs| of the viscosity solve */
+    double max_viscosity;     /* largest kinematic viscosity of a particle, m^2/s */
+    double min_viscosity;     /* smallest, m^2/s */
+} stf_solver_stats;
+
 typedef struct stf_fluid_def {
     unsigned effects;      /* bit set of enum stf_effect */
     double spacing;        /* initial particle spacing, m (> 0) */
@@ -88,6 +127,15 @@ typedef struct stf_fluid_def {
     /* boundary treatment (section 3.3) */
     double stick;          /* 1/s: tangential velocity at a wall decays at the rate
                               stick * kh / (k_min + kh), kh = mean history stiffness (>= 0) */
+    /* the fluid model: Clavet/STF (the fields above) or Carreau-Yasuda (cy below, src/cy.c);
+       the Carreau-Yasuda model runs gravity and its own solver, and no other effect */
+    int model;             /* enum stf_model */
+    stf_cy_def cy;         /* Carreau-Yasuda parameters (model STF_MODEL_CARREAU_YASUDA) */
+    /* periodic domain (Carreau-Yasuda model only, API only): along axis a with
+       periodic[a] > 0 (m, >= 3 h), positions wrap into [periodic_origin[a],
+       periodic_origin[a] + periodic[a]) and neighbours are found across the seam */
+    double periodic[3];
+    double periodic_origin[3];
 } stf_fluid_def;
 
 /* Defaults: a cornstarch-like viscoelastic fluid at 1 cm spacing with every effect on. */
@@ -179,6 +227,16 @@ int stf_fluid_history_steps(const stf_fluid *f);
  * particle mass, rest densities, history window), as YAML "key: value  # unit" lines.
  * Returns the length written (like snprintf). */
 int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len);
+/* The Carreau-Yasuda solver's statistics of the last step. */
+void stf_fluid_solver_stats(const stf_fluid *f, stf_solver_stats *st);
+/* Per particle: pressure (Pa) of the last step's projection; zeros for the Clavet model. */
+void stf_fluid_get_pressures(const stf_fluid *f, double *p);
+/* The Carreau-Yasuda viscosity (Eq. 3) at shear rate g (1/s), m^2/s. */
+double stf_cy_viscosity(const stf_cy_def *cy, double g);
+/* The rest density rho0 (kg/m^3) of the Carreau-Yasuda model: the kernel sum of the cubic
+ * lattice at the fluid's spacing times the particle mass (close to def.density). */
+double stf_fluid_cy_rest_density(const stf_fluid *f);
+
 /* FNV-1a hash of positions and velocities, for determinism tests. */
 uint64_t stf_fluid_hash(const stf_fluid *f);
 

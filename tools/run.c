@@ -207,8 +207,23 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
     signal(SIGTERM, on_signal);
     double t0 = omp_get_wtime();
     int status = rc ? 2 : 0;
+    /* Carreau-Yasuda solver statistics, per frame (attributes of /Step#N: the steps since the
+       frame before) and for the run (root attributes) */
+    int cy = sc->fluid.model == STF_MODEL_CARREAU_YASUDA;
+    double fr_it_max = 0, fr_it_sum = 0, fr_err_max = 0, fr_cg_max = 0, fr_cg_sum = 0, fr_n = 0;
+    double run_it_max = 0, run_it_sum = 0, run_err_max = 0, run_cg_max = 0, run_cg_sum = 0;
     for (long s = 1; s <= steps && status == 0; s++) {
-        if (stf_sim_step(sim) != 0) {
+        int step_rc = stf_sim_step(sim);
+        if (cy && step_rc == 0) {
+            stf_solver_stats st;
+            stf_fluid_solver_stats(sim->fluid, &st);
+            fr_it_max = st.pressure_iterations > fr_it_max ? st.pressure_iterations : fr_it_max;
+            fr_err_max = st.density_error > fr_err_max ? st.density_error : fr_err_max;
+            fr_cg_max = st.viscosity_iterations > fr_cg_max ? st.viscosity_iterations : fr_cg_max;
+            fr_it_sum += st.pressure_iterations, fr_cg_sum += st.viscosity_iterations, fr_n++;
+            run_it_sum += st.pressure_iterations, run_cg_sum += st.viscosity_iterations;
+        }
+        if (step_rc != 0) {
             fprintf(stderr, "\nstf: numerical failure: %s; the last good frame is in %s\n",
                     stf_fluid_failure(sim->fluid), out);
             status = 3;
@@ -217,6 +232,17 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
         if (s % body_every == 0 && write_bodies(h, sim) != 0) status = 2;
         if (s % per_frame == 0 || s == steps) {
             if (write_frame(h, sim, &b) != 0) status = 2;
+            if (cy && fr_n > 0) {
+                stf_h5_frame_attr_double(h, "pressure_iterations_max", fr_it_max);
+                stf_h5_frame_attr_double(h, "pressure_iterations_mean", fr_it_sum / fr_n);
+                stf_h5_frame_attr_double(h, "density_error_max", fr_err_max);
+                stf_h5_frame_attr_double(h, "viscosity_iterations_max", fr_cg_max);
+                stf_h5_frame_attr_double(h, "viscosity_iterations_mean", fr_cg_sum / fr_n);
+                run_it_max = fr_it_max > run_it_max ? fr_it_max : run_it_max;
+                run_err_max = fr_err_max > run_err_max ? fr_err_max : run_err_max;
+                run_cg_max = fr_cg_max > run_cg_max ? fr_cg_max : run_cg_max;
+                fr_it_max = fr_it_sum = fr_err_max = fr_cg_max = fr_cg_sum = fr_n = 0;
+            }
             progress(a, sim, duration, omp_get_wtime() - t0);
             if (interrupted) {
                 fprintf(stderr, "\nstf: interrupted at t = %.4f s; %s holds the run so far\n",
@@ -232,6 +258,18 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
     stf_h5_attr_double(h, "wall_seconds", wall);
     stf_h5_attr_double(h, "dt_min", sc->dt);
     stf_h5_attr_double(h, "dt_max", sc->dt);
+    if (cy && sim->steps > 0) {
+        stf_h5_attr_double(h, "pressure_iterations_max", run_it_max);
+        stf_h5_attr_double(h, "pressure_iterations_mean", run_it_sum / (double)sim->steps);
+        stf_h5_attr_double(h, "density_error_max", run_err_max);
+        stf_h5_attr_double(h, "viscosity_iterations_max", run_cg_max);
+        stf_h5_attr_double(h, "viscosity_iterations_mean", run_cg_sum / (double)sim->steps);
+        if (!a->quiet)
+            fprintf(stderr, "stf: carreau_yasuda: pressure iterations mean %.2f max %.0f, mean "
+                    "density error max %.3g%% (eta %g%%), viscosity CG iterations mean %.1f max %.0f\n",
+                    run_it_sum / (double)sim->steps, run_it_max, 100 * run_err_max,
+                    100 * sc->fluid.cy.eta, run_cg_sum / (double)sim->steps, run_cg_max);
+    }
     if (status == 2) fprintf(stderr, "stf: writing %s failed: %s\n", out, stf_h5_last_error(h));
     if (stf_metrics_compute(out, m, err, sizeof err) == 0) {
         char *json = stf_metrics_json(m);

@@ -1,0 +1,720 @@
+/* cy.c - Carreau-Yasuda non-Newtonian SPH with pressure projection and implicit viscosity
+ * (the second paper, "003": Eq. 3, 9-26, Algorithms 1 and 2).
+ *
+ * One step (Algorithm 2):
+ *   1. neighbours (the shared grid), densities rho_i = sum_j m W_ij + walls (Eq. 6) and the
+ *      per-particle factors S_i of Eq. 20-21;
+ *   2. v* = v + dt g (Eq. 11);
+ *   3. pressure projection (Algorithm 1): predicted densities rho*_i = rho_i + dt sum_j m
+ *      (v_i - v_j).grad W_ij (Eq. 19), per-particle stiffness k_i from Eq. 21, velocity
+ *      change -dt sum_j m (k_i/rho_i + k_j/rho_j) grad W_ij; repeated until the mean
+ *      density error is below eta and at least min_pressure_iterations times -> v**;
+ *   4. viscosity: strain rate D_i = L_i + L_i^T, L_i = (1/rho_i) sum_j m (v_j - v_i) (x)
+ *      grad W_ij (Eq. 9, 22), nu_i = Carreau-Yasuda(g_i) (Eq. 3), g_i = sqrt(D_i:D_i / 2);
+ *      viscous acceleration with the pair viscosity (see below); explicit (forward Euler)
+ *      or implicit (backward Euler, nu frozen at its value from v**, solved matrix-free by
+ *      conjugate gradients to |r| <= cg_tolerance |b|, Eq. 23-26);
+ *   5. x += dt v; collisions with the shared collider stage; v from the position change.
+ *
+ * Choices where the text is garbled or silent (each one physically consistent):
+ * - Eq. 20-21 as printed have k_i = (rho0 - rho*)/(dt^2 alpha_i), alpha_i = rho_i (...);
+ *   dimensions and the sign of Eq. 20 give k_i = (rho*_i - rho0) rho_i / (dt^2 S_i) with
+ *   S_i = |sum_j m grad W_ij|^2 + sum_j |m grad W_ij|^2: k_i is then p_i / rho_i (m^2/s^2), the
+ *   velocity update of Algorithm 1 is the symmetric SPH pressure force, and the pressure of
+ *   a particle is rho_i times the sum of its k_i over the iterations.
+ * - Free surface: only compression is corrected (rho* below rho0 counts as rho0), so the
+ *   projection never pulls particles together; the density error is the mean compression.
+ * - Shear rate: sqrt(D:D / 2), which is |du/dy| in simple shear (the paper's Frobenius norm
+ *   sqrt(D:D) is sqrt(2) larger, which only rescales K).
+ * - Eq. 24 as printed drops mu_inf and the "1 +"; the implicit step here keeps the full
+ *   Eq. 3 and linearises by freezing nu over the step (one Picard step).
+ * - The viscous force is Morris et al.'s (1997) SPH Laplacian with the pair viscosity
+ *   mu_i + mu_j (the usual generalised-Newtonian SPH form), not the divergence of the SPH
+ *   stress of Eq. 10: that is a first derivative of a first derivative, blind to velocities
+ *   alternating from particle to particle; with it, plane Poiseuille flow came out with
+ *   layers alternating and 4x too fast (measured). Morris' operator is symmetric negative
+ *   semi-definite (pair weights m (mu_i + mu_j) (r.grad W) / (rho_i rho_j (r^2 + 0.01 h^2))),
+ *   so I - dt (viscous operator) is symmetric positive definite and CG applies. For the
+ *   plane shear flows of the tests it is exact: div(mu grad v) = div(mu D) there.
+ * - The projection is Jacobi with the full k_i of Eq. 21 (no relaxation), from zero
+ *   pressure each step, as Algorithm 1.
+ * - Walls (any collider: container, ODE bodies) are a half-space of lattice particles at
+ *   rest density that move with the solid (tabulated by distance, as the Clavet model's
+ *   mirror particles in pressure.c): they add to density and S_i, take part in the
+ *   projection with the particle's own k_i, in the strain rate with the solid's velocity, and
+ *   in the viscous force with Morris' mirror velocity (zero relative velocity on the surface:
+ *   no slip). Every velocity change they cause is an impulse the collider receives back,
+ *   which is how ODE bodies feel buoyancy and drag. Where two walls meet, both count
+ *   (the corner's lattice twice).
+ */
+#include "cy.h"
+
+#include <math.h>
+#include <omp.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define PI 3.14159265358979323846
+
+typedef struct cy_state {
+    int cap;             /* particles the arrays hold */
+    int stride;          /* pair-array stride (the grid's) */
+    double rho0;         /* rest density, kg/m^3 */
+    double wall_rho[WALL_BINS + 1];  /* wall density by distance, kg/m^3 */
+    double wall_grad[WALL_BINS + 1]; /* |sum_b m grad W_ib| by distance, kg/m^4 */
+    double *rho, *S, *kappa, *ktot, *rhostar; /* n each */
+    double *gw;          /* 3n: sum over walls of m grad W (points into the walls) */
+    double *qw;          /* n: sum over walls of v_wall . (m grad W) */
+    double *wv;          /* 9n: sum over walls of v_wall (x) m grad W (row-major) */
+    double *D;           /* 6n: strain rate xx yy zz xy xz yz, 1/s */
+    double *nu;          /* n: kinematic viscosity of the step, m^2/s */
+    double *vel;         /* 3n: v** */
+    double *b, *dv, *r, *p, *Ap; /* 3n each: viscosity solve */
+    double *lap;         /* cap * stride: m (r.grad W)/(r^2 + 0.01 h^2) per pair, kg/m^5 */
+    double wall_lap[WALL_BINS + 1]; /* the same summed over a wall's lattice, with Morris'
+                                       mirror velocity (see tables), by distance */
+    double *lw;          /* n: sum over walls of wall_lap */
+    double *lwv;         /* 3n: sum over walls of wall_lap * v_wall */
+    double *grad;        /* 3 * cap * stride: grad W_ij of each neighbour pair, 1/m^4 */
+    size_t grad_cap;
+    char *hit;
+    stf_solver_stats stats;
+} cy_state;
+
+/* ------------------------------------------------------------------ kernel (cubic spline) */
+
+/* Cubic spline of support h (Monaghan's M4 written with q = r/h in [0,1]). */
+static double kernel_w(double r, double h)
+{
+    double q = r / h, k = 8.0 / (PI * h * h * h);
+    if (q >= 1) return 0;
+    if (q <= 0.5) return k * (6 * q * q * q - 6 * q * q + 1);
+    double a = 1 - q;
+    return k * 2 * a * a * a;
+}
+
+/* dW/dr (<= 0). */
+static double kernel_dw(double r, double h)
+{
+    double q = r / h, l = 48.0 / (PI * h * h * h * h);
+    if (q >= 1) return 0;
+    if (q <= 0.5) return l * q * (3 * q - 2);
+    double a = 1 - q;
+    return -l * a * a;
+}
+
+/* x_i - x_j with the nearest periodic image; returns |r|. */
+static double pair_vec(const stf_fluid *f, int i, int j, double r[3])
+{
+    for (int a = 0; a < 3; a++) {
+        double d = f->x[3 * i + a] - f->x[3 * j + a];
+        double L = f->def.periodic[a];
+        if (L > 0) d -= L * floor(d / L + 0.5);
+        r[a] = d;
+    }
+    return sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
+}
+
+/* ----------------------------------------------------------------------- parameters */
+
+#define FAIL(...)                                                                             \
+    do {                                                                                      \
+        snprintf(err, errlen, __VA_ARGS__);                                                   \
+        return -1;                                                                            \
+    } while (0)
+
+int cy_check_def(const stf_fluid_def *d, char *err, size_t errlen)
+{
+    const stf_cy_def *c = &d->cy;
+    if (d->effects & ~(unsigned)STF_EFFECT_GRAVITY)
+        FAIL("effects: the carreau_yasuda model runs gravity and its own solver only");
+    if (!(c->mu0 >= 0 && isfinite(c->mu0))) FAIL("mu0: must be >= 0 (got %g)", c->mu0);
+    if (!(c->mu_inf >= 0 && isfinite(c->mu_inf))) FAIL("mu_inf: must be >= 0 (got %g)", c->mu_inf);
+    if (!(c->K >= 0 && isfinite(c->K))) FAIL("K: must be >= 0 (got %g)", c->K);
+    if (!(c->alpha > 0 && isfinite(c->alpha))) FAIL("alpha: must be > 0 (got %g)", c->alpha);
+    if (!(c->n > 0 && isfinite(c->n))) FAIL("n: must be > 0 (got %g)", c->n);
+    if (!(c->eta > 0 && c->eta < 1)) FAIL("eta: must be in (0,1) (got %g)", c->eta);
+    if (c->min_pressure_iterations < 1)
+        FAIL("min_pressure_iterations: must be >= 1 (got %d)", c->min_pressure_iterations);
+    if (c->max_pressure_iterations < c->min_pressure_iterations)
+        FAIL("max_pressure_iterations: must be >= min_pressure_iterations (got %d)",
+             c->max_pressure_iterations);
+    if (c->viscosity_solver != STF_VISCOSITY_IMPLICIT && c->viscosity_solver != STF_VISCOSITY_EXPLICIT)
+        FAIL("viscosity_solver: must be implicit or explicit (got %d)", c->viscosity_solver);
+    if (!(c->cg_tolerance > 0 && c->cg_tolerance < 1))
+        FAIL("cg_tolerance: must be in (0,1) (got %g)", c->cg_tolerance);
+    if (c->max_cg_iterations < 1) FAIL("max_cg_iterations: must be >= 1 (got %d)", c->max_cg_iterations);
+    double h = d->h > 0 ? d->h : 2 * d->spacing;
+    for (int a = 0; a < 3; a++) {
+        if (!(d->periodic[a] >= 0 && isfinite(d->periodic[a])))
+            FAIL("periodic: must be >= 0 (got %g)", d->periodic[a]);
+        if (d->periodic[a] > 0 && d->periodic[a] < 3 * h)
+            FAIL("periodic: a period must be >= 3 h = %g m (got %g)", 3 * h, d->periodic[a]);
+        if (!isfinite(d->periodic_origin[a])) FAIL("periodic_origin: must be finite");
+    }
+    return 0;
+}
+
+double stf_cy_viscosity(const stf_cy_def *c, double g)
+{
+    /* Eq. 3 */
+    double t = pow(c->K * g, c->alpha);
+    return c->mu_inf + (c->mu0 - c->mu_inf) * pow(1.0 + t, (c->n - 1.0) / c->alpha);
+}
+
+/* ----------------------------------------------------------------------- creation */
+
+/* Rest density: the kernel sum of the cubic lattice the blocks are filled with, so a block
+ * starts at rho0; and the wall tables (a half-space of that lattice, first layer half a
+ * spacing inside the solid, so a particle half a spacing from a wall sees the lattice). */
+static void tables(stf_fluid *f, cy_state *c)
+{
+    double s = f->def.spacing, h = f->h, m = f->mass;
+    int k = (int)ceil(h / s) + 1;
+    double sum = 0;
+    for (int a = -k; a <= k; a++)
+        for (int b = -k; b <= k; b++)
+            for (int e = -k; e <= k; e++)
+                sum += kernel_w(s * sqrt((double)(a * a + b * b + e * e)), h);
+    c->rho0 = m * sum;
+    for (int bin = 0; bin <= WALL_BINS; bin++) {
+        double d = h * bin / WALL_BINS, rho = 0, grad = 0, lap = 0;
+        double dd = d > 0.05 * s ? d : 0.05 * s;
+        for (int layer = 0; layer <= k; layer++)
+            for (int a = -k; a <= k; a++)
+                for (int e = -k; e <= k; e++) {
+                    double dz = d + s * (0.5 + layer), dx = a * s, dy = e * s;
+                    double r = sqrt(dx * dx + dy * dy + dz * dz);
+                    if (r >= h) continue;
+                    rho += m * kernel_w(r, h);
+                    grad += -m * kernel_dw(r, h) * dz / r;
+                    /* Morris et al. (1997): the wall particle b moves with v_w - (d_b/d)
+                       (v_i - v_w), d_b its depth in the solid, so the velocity is zero on the
+                       surface itself; d_b/d capped at 1.5 */
+                    double depth = s * (0.5 + layer), ratio = depth / dd;
+                    lap += m * kernel_dw(r, h) * r / (r * r + 0.01 * h * h) *
+                           (1 + (ratio < 1.5 ? ratio : 1.5));
+                }
+        c->wall_lap[bin] = lap;
+        c->wall_rho[bin] = rho;
+        c->wall_grad[bin] = grad;
+    }
+}
+
+int cy_create(stf_fluid *f)
+{
+    cy_state *c = calloc(1, sizeof *c);
+    if (!c) return -1;
+    tables(f, c);
+    f->cy = c;
+    for (int a = 0; a < 3; a++) {
+        f->grid.period[a] = f->def.periodic[a];
+        f->grid.origin[a] = f->def.periodic_origin[a];
+    }
+    return 0;
+}
+
+void cy_free(stf_fluid *f)
+{
+    cy_state *c = f->cy;
+    if (!c) return;
+    double *arrays[] = {c->rho, c->S,  c->kappa, c->ktot, c->rhostar, c->gw, c->qw, c->wv,
+                        c->D,   c->nu, c->vel,   c->b,    c->dv,      c->r,  c->p,  c->Ap};
+    for (size_t k = 0; k < sizeof arrays / sizeof *arrays; k++) free(arrays[k]);
+    free(c->grad);
+    free(c->lap);
+    free(c->lw);
+    free(c->lwv);
+    free(c->hit);
+    free(c);
+    f->cy = NULL;
+}
+
+static int grow(double **p, size_t count)
+{
+    double *q = realloc(*p, (count ? count : 1) * sizeof *q);
+    if (!q) return -1;
+    *p = q;
+    return 0;
+}
+
+static int reserve(stf_fluid *f, int n)
+{
+    cy_state *c = f->cy;
+    size_t pairs = (size_t)n * (size_t)f->grid.stride * 3;
+    if (pairs > c->grad_cap) {
+        if (grow(&c->grad, pairs) || grow(&c->lap, pairs / 3)) return -1;
+        c->grad_cap = pairs;
+    }
+    c->stride = f->grid.stride;
+    size_t N = (size_t)n;
+    if (n <= c->cap) return 0;
+    if (grow(&c->rho, N) || grow(&c->S, N) || grow(&c->kappa, N) || grow(&c->ktot, N) ||
+        grow(&c->rhostar, N) || grow(&c->gw, 3 * N) || grow(&c->qw, N) || grow(&c->wv, 9 * N) ||
+        grow(&c->D, 6 * N) || grow(&c->nu, N) || grow(&c->vel, 3 * N) || grow(&c->b, 3 * N) ||
+        grow(&c->dv, 3 * N) || grow(&c->r, 3 * N) || grow(&c->p, 3 * N) || grow(&c->Ap, 3 * N) ||
+        grow(&c->lw, N) || grow(&c->lwv, 3 * N))
+        return -1;
+    char *hit = realloc(c->hit, N);
+    if (!hit) return -1;
+    c->hit = hit;
+    c->cap = n;
+    return 0;
+}
+
+/* ----------------------------------------------------------------------------- walls */
+
+/* Wall sums at distance d from a flat wall: density and the normal gradient magnitude. */
+static void wall_at(const cy_state *c, double d, double h, double *rho, double *grad, double *lap)
+{
+    double u = d / h * WALL_BINS;
+    if (u < 0) u = 0;
+    if (u >= WALL_BINS) {
+        *rho = *grad = *lap = 0;
+        return;
+    }
+    int b = (int)u;
+    double t = u - b;
+    *rho = (1 - t) * c->wall_rho[b] + t * c->wall_rho[b + 1];
+    *grad = (1 - t) * c->wall_grad[b] + t * c->wall_grad[b + 1];
+    *lap = (1 - t) * c->wall_lap[b] + t * c->wall_lap[b + 1];
+}
+
+/* Collider k's wall term at particle i: returns 1 within h, with G = sum_b m grad W_ib
+ * (pointing into the solid), the density it adds and the solid's velocity there. */
+static int wall_term(const stf_fluid *f, const collider *col, int i, double G[3], double *rho,
+                     double *lap, double vb[3])
+{
+    const double *x = f->x + 3 * i;
+    double h = f->h;
+    if (col->bound >= 0) {
+        double d2 = 0;
+        for (int a = 0; a < 3; a++) d2 += (x[a] - col->pos[a]) * (x[a] - col->pos[a]);
+        if (d2 > (col->bound + h) * (col->bound + h)) return 0;
+    }
+    double nrm[3], g;
+    double d = collider_sdf(col, x, nrm);
+    if (d >= h) return 0;
+    wall_at(f->cy, d, h, rho, &g, lap);
+    for (int a = 0; a < 3; a++) G[a] = -g * nrm[a];
+    collider_velocity_at(col, x, vb);
+    return 1;
+}
+
+static void walls_one(stf_fluid *f, int i)
+{
+    cy_state *c = f->cy;
+    double *gw = c->gw + 3 * i, *wv = c->wv + 9 * i, *lwv = c->lwv + 3 * i, rho = 0, q = 0, lw = 0;
+    memset(gw, 0, 3 * sizeof *gw);
+    memset(wv, 0, 9 * sizeof *wv);
+    memset(lwv, 0, 3 * sizeof *lwv);
+    for (int k = 0; k < f->ncolliders; k++) {
+        double G[3] = {0, 0, 0}, r = 0, lap = 0, vb[3] = {0, 0, 0};
+        if (!wall_term(f, &f->colliders[k], i, G, &r, &lap, vb)) continue;
+        rho += r;
+        lw += lap;
+        for (int a = 0; a < 3; a++) lwv[a] += lap * vb[a];
+        for (int a = 0; a < 3; a++) {
+            gw[a] += G[a];
+            q += vb[a] * G[a];
+            for (int b = 0; b < 3; b++) wv[3 * a + b] += vb[a] * G[b];
+        }
+    }
+    c->rho[i] = rho; /* the fluid's part is added in density_one */
+    c->qw[i] = q;
+    c->lw[i] = lw;
+}
+
+/* ---------------------------------------------------------------- density and factors */
+
+/* rho_i (Eq. 6), the pair gradients, and S_i of Eq. 20-21. */
+static void density_one(stf_fluid *f, int i)
+{
+    cy_state *c = f->cy;
+    double h = f->h, m = f->mass, rho = c->rho[i] + m * kernel_w(0, h);
+    double sum[3] = {c->gw[3 * i], c->gw[3 * i + 1], c->gw[3 * i + 2]}, sq = 0;
+    const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
+    double *gr = c->grad + (size_t)i * c->stride * 3, *lp = c->lap + (size_t)i * c->stride;
+    for (int k = 0; k < f->grid.count[i]; k++) {
+        double r[3];
+        double len = pair_vec(f, i, nb[k], r);
+        rho += m * kernel_w(len, h);
+        double s = len > 1e-12 * h ? kernel_dw(len, h) / len : 0;
+        lp[k] = m * s * len * len / (len * len + 0.01 * h * h);
+        for (int a = 0; a < 3; a++) {
+            gr[3 * k + a] = s * r[a];
+            sum[a] += m * s * r[a];
+        }
+        sq += m * m * s * s * len * len;
+    }
+    c->rho[i] = rho;
+    c->S[i] = sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2] + sq;
+}
+
+/* ------------------------------------------------------------- pressure (Algorithm 1) */
+
+/* rho*_i (Eq. 19) from the velocities v. */
+static double predict_one(const stf_fluid *f, const double *v, int i, double dt)
+{
+    const cy_state *c = f->cy;
+    double div = 0, m = f->mass;
+    const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
+    const double *gr = c->grad + (size_t)i * c->stride * 3, *vi = v + 3 * i;
+    for (int k = 0; k < f->grid.count[i]; k++) {
+        const double *vj = v + 3 * nb[k];
+        div += m * ((vi[0] - vj[0]) * gr[3 * k] + (vi[1] - vj[1]) * gr[3 * k + 1] +
+                    (vi[2] - vj[2]) * gr[3 * k + 2]);
+    }
+    const double *G = c->gw + 3 * i;
+    div += vi[0] * G[0] + vi[1] * G[1] + vi[2] * G[2] - c->qw[i];
+    return c->rho[i] + dt * div;
+}
+
+/* Velocity change of Algorithm 1's last loop for the current kappa (written to out). */
+static void pressure_dv_one(const stf_fluid *f, int i, double dt, double *out)
+{
+    const cy_state *c = f->cy;
+    double m = f->mass, ki = c->kappa[i] / c->rho[i], d[3] = {0, 0, 0};
+    const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
+    const double *gr = c->grad + (size_t)i * c->stride * 3;
+    for (int k = 0; k < f->grid.count[i]; k++) {
+        int j = nb[k];
+        double w = m * (ki + c->kappa[j] / c->rho[j]);
+        for (int a = 0; a < 3; a++) d[a] += w * gr[3 * k + a];
+    }
+    for (int a = 0; a < 3; a++) out[3 * i + a] = -dt * (d[a] + ki * c->gw[3 * i + a]);
+}
+
+static double mean_error(const stf_fluid *f)
+{
+    const cy_state *c = f->cy;
+    double sum = 0; /* serial: the same result for any thread count */
+    for (int i = 0; i < f->n; i++) sum += c->rhostar[i] > c->rho0 ? c->rhostar[i] - c->rho0 : 0;
+    return f->n > 0 ? sum / f->n / c->rho0 : 0;
+}
+
+/* Applies kappa as velocity changes and adds it to the particles' totals. */
+static void pressure_apply(stf_fluid *f, double dt)
+{
+    cy_state *c = f->cy;
+    int n = f->n;
+    double *v = f->v, *dv = c->dv;
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++) pressure_dv_one(f, i, dt, dv);
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++) {
+        for (int a = 0; a < 3; a++) v[3 * i + a] += dv[3 * i + a];
+        c->ktot[i] += c->kappa[i];
+    }
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++) c->rhostar[i] = predict_one(f, v, i, dt);
+}
+
+/* Algorithm 1: k_i from Eq. 21 for every particle (Jacobi), applied together, until the mean
+ * compression is below eta and at least min_pressure_iterations were done. Each step starts
+ * from zero pressure, as the paper's. (Starting from the last step's pressures and letting a
+ * correction lower them was tried: it made a fluid at rest unstable within 0.4 s.) */
+static void pressure_project(stf_fluid *f, double dt)
+{
+    cy_state *c = f->cy;
+    int n = f->n, iter = 0;
+    double err;
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++) {
+        c->ktot[i] = 0;
+        c->rhostar[i] = predict_one(f, f->v, i, dt);
+    }
+    do {
+#pragma omp parallel for schedule(static)
+        for (int i = 0; i < n; i++) { /* Eq. 21; only compression is corrected */
+            double k = c->S[i] > 0 ? (c->rhostar[i] - c->rho0) * c->rho[i] / (dt * dt * c->S[i]) : 0;
+            c->kappa[i] = k > 0 ? k : 0;
+        }
+        pressure_apply(f, dt);
+        err = mean_error(f);
+        iter++;
+    } while ((err > f->def.cy.eta || iter < f->def.cy.min_pressure_iterations) &&
+             iter < f->def.cy.max_pressure_iterations);
+    c->stats.pressure_iterations = iter;
+    c->stats.density_error = err;
+}
+
+/* ------------------------------------------------------------------------ viscosity */
+
+/* D_i = L_i + L_i^T, L_i = (1/rho_i) [sum_j m (u_j - u_i) (x) grad W_ij + (v_w - u_i) (x) G_w]
+ * (Eq. 9, 22); the walls' velocity v_w only when with_walls (the affine part). */
+static void strain_one(const stf_fluid *f, const double *u, int i, int with_walls, double *D)
+{
+    const cy_state *c = f->cy;
+    double L[9] = {0}, m = f->mass;
+    const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
+    const double *gr = c->grad + (size_t)i * c->stride * 3, *ui = u + 3 * i;
+    for (int k = 0; k < f->grid.count[i]; k++) {
+        const double *uj = u + 3 * nb[k];
+        for (int a = 0; a < 3; a++) {
+            double du = m * (uj[a] - ui[a]);
+            for (int b = 0; b < 3; b++) L[3 * a + b] += du * gr[3 * k + b];
+        }
+    }
+    const double *G = c->gw + 3 * i;
+    for (int a = 0; a < 3; a++)
+        for (int b = 0; b < 3; b++)
+            L[3 * a + b] += (with_walls ? c->wv[9 * i + 3 * a + b] : 0) - ui[a] * G[b];
+    double inv = 1.0 / c->rho[i];
+    double *d = D + 6 * i;
+    d[0] = 2 * L[0] * inv;
+    d[1] = 2 * L[4] * inv;
+    d[2] = 2 * L[8] * inv;
+    d[3] = (L[1] + L[3]) * inv;
+    d[4] = (L[2] + L[6]) * inv;
+    d[5] = (L[5] + L[7]) * inv;
+}
+
+/* T . g for a symmetric tensor T stored as xx yy zz xy xz yz. */
+static __attribute__((unused)) void sym_dot(const double *T, const double *g, double s, double out[3])
+{
+    out[0] += s * (T[0] * g[0] + T[3] * g[1] + T[4] * g[2]);
+    out[1] += s * (T[3] * g[0] + T[1] * g[1] + T[5] * g[2]);
+    out[2] += s * (T[4] * g[0] + T[5] * g[1] + T[2] * g[2]);
+}
+
+/* Viscous acceleration of the velocity field u: Morris et al.'s (1997) SPH Laplacian with
+ * the pair viscosity (mu_i + mu_j), mu = rho nu,
+ *   a_i = sum_j m (mu_i + mu_j) / (rho_i rho_j) (r_ij . grad W_ij) / (r^2 + 0.01 h^2) (u_i - u_j),
+ * plus the walls (mirror particles of viscosity mu_i moving with Morris' mirror velocity);
+ * the walls' own velocity enters only when with_walls (the affine part of the operator).
+ * This replaces the divergence of the SPH stress of Eq. 10 (see the file comment). */
+static void viscous_one(const stf_fluid *f, const double *u, int i, int with_walls, double *out)
+{
+    const cy_state *c = f->cy;
+    double a[3] = {0, 0, 0}, mi = c->rho[i] * c->nu[i];
+    const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
+    const double *lp = c->lap + (size_t)i * c->stride, *ui = u + 3 * i;
+    for (int k = 0; k < f->grid.count[i]; k++) {
+        int j = nb[k];
+        const double *uj = u + 3 * j;
+        double w = lp[k] * (mi + c->rho[j] * c->nu[j]) / (c->rho[i] * c->rho[j]);
+        for (int e = 0; e < 3; e++) a[e] += w * (ui[e] - uj[e]);
+    }
+    double ww = c->nu[i] * (c->rho[i] + c->rho0) / (c->rho[i] * c->rho0);
+    for (int e = 0; e < 3; e++)
+        out[3 * i + e] = a[e] + ww * (c->lw[i] * ui[e] - (with_walls ? c->lwv[3 * i + e] : 0));
+}
+
+/* out = u - dt * (viscous acceleration of u without the walls' velocity). */
+static void apply_system(stf_fluid *f, const double *u, double dt, double *out)
+{
+    int n = f->n;
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++) viscous_one(f, u, i, 0, out);
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < 3 * n; i++) out[i] = u[i] - dt * out[i];
+}
+
+static double dot(const double *a, const double *b, int n)
+{
+    double s = 0; /* serial: deterministic for any thread count */
+    for (int i = 0; i < n; i++) s += a[i] * b[i];
+    return s;
+}
+
+/* The viscosity of the step from the strain rate of v (Eq. 3), in c->nu. */
+static void viscosity_field(stf_fluid *f, const double *v)
+{
+    cy_state *c = f->cy;
+    int n = f->n;
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++) {
+        strain_one(f, v, i, 1, c->D);
+        const double *d = c->D + 6 * i;
+        double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] +
+                    2 * (d[3] * d[3] + d[4] * d[4] + d[5] * d[5]);
+        c->nu[i] = stf_cy_viscosity(&f->def.cy, sqrt(0.5 * dd));
+    }
+    double lo = n ? c->nu[0] : 0, hi = lo;
+    for (int i = 1; i < n; i++) {
+        lo = c->nu[i] < lo ? c->nu[i] : lo;
+        hi = c->nu[i] > hi ? c->nu[i] : hi;
+    }
+    c->stats.min_viscosity = lo;
+    c->stats.max_viscosity = hi;
+}
+
+/* Viscosity step from v** (in f->v): explicit, or implicit by conjugate gradients on
+ * (I - dt A) dv = dt a(v**), dv the velocity change, A the viscous operator. */
+static void viscosity_solve(stf_fluid *f, double dt)
+{
+    cy_state *c = f->cy;
+    int n = f->n, N = 3 * n;
+    viscosity_field(f, f->v);
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++) viscous_one(f, f->v, i, 1, c->b);
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < N; i++) c->b[i] *= dt;
+    c->stats.viscosity_iterations = 0;
+    c->stats.viscosity_residual = 0;
+    if (f->def.cy.viscosity_solver == STF_VISCOSITY_EXPLICIT) {
+#pragma omp parallel for schedule(static)
+        for (int i = 0; i < N; i++) f->v[i] += c->b[i];
+        return;
+    }
+    double bb = dot(c->b, c->b, N);
+    if (bb > 0) {
+        double *x = c->dv, *r = c->r, *p = c->p, *Ap = c->Ap;
+        memcpy(x, c->b, (size_t)N * sizeof *x); /* start from the explicit step */
+        apply_system(f, x, dt, Ap);
+        for (int i = 0; i < N; i++) r[i] = c->b[i] - Ap[i];
+        memcpy(p, r, (size_t)N * sizeof *p);
+        double rr = dot(r, r, N), tol2 = f->def.cy.cg_tolerance * f->def.cy.cg_tolerance * bb;
+        int it = 0;
+        while (rr > tol2 && it < f->def.cy.max_cg_iterations) {
+            apply_system(f, p, dt, Ap);
+            double pAp = dot(p, Ap, N);
+            if (!(pAp > 0)) break;
+            double al = rr / pAp;
+#pragma omp parallel for schedule(static)
+            for (int i = 0; i < N; i++) {
+                x[i] += al * p[i];
+                r[i] -= al * Ap[i];
+            }
+            double rr2 = dot(r, r, N);
+#pragma omp parallel for schedule(static)
+            for (int i = 0; i < N; i++) p[i] = r[i] + rr2 / rr * p[i];
+            rr = rr2;
+            it++;
+        }
+        c->stats.viscosity_iterations = it;
+        c->stats.viscosity_residual = sqrt(rr / bb);
+#pragma omp parallel for schedule(static)
+        for (int i = 0; i < N; i++) f->v[i] += x[i];
+    }
+}
+
+/* ------------------------------------------------------------------ wall reactions */
+
+/* The impulses the walls gave the particles during the step go back to the colliders:
+ * pressure -dt (sum k_i / rho_i) G and viscous dt (the wall part of viscous_one), the latter
+ * with the final velocity (the implicit step's). */
+static void wall_reactions(stf_fluid *f, double dt)
+{
+    cy_state *c = f->cy;
+    int n = f->n;
+    for (int k = 0; k < f->ncolliders; k++) {
+        collider *col = &f->colliders[k];
+#pragma omp parallel for schedule(static)
+        for (int i = 0; i < n; i++) {
+            double G[3] = {0, 0, 0}, rho = 0, lap = 0, vb[3] = {0, 0, 0};
+            c->hit[i] = (char)wall_term(f, col, i, G, &rho, &lap, vb);
+            if (!c->hit[i]) continue;
+            double ki = c->ktot[i] / c->rho[i];
+            double ww = c->nu[i] * (c->rho[i] + c->rho0) / (c->rho[i] * c->rho0) * lap;
+            for (int a = 0; a < 3; a++)
+                c->dv[3 * i + a] = f->mass * dt * (ww * (f->v[3 * i + a] - vb[a]) - ki * G[a]);
+        }
+        collider_take_reaction(col, c->dv, f->x, c->hit, n);
+    }
+}
+
+/* ------------------------------------------------------------------------- the step */
+
+static void wrap_positions(stf_fluid *f)
+{
+    for (int a = 0; a < 3; a++) {
+        double L = f->def.periodic[a], o = f->def.periodic_origin[a];
+        if (!(L > 0)) continue;
+        for (int i = 0; i < f->n; i++) {
+            double s = L * floor((f->x[3 * i + a] - o) / L);
+            f->x[3 * i + a] -= s;
+            f->xprev[3 * i + a] -= s;
+        }
+    }
+}
+
+int cy_step(stf_fluid *f, double dt)
+{
+    cy_state *c = f->cy;
+    int n = f->n;
+    double t0 = omp_get_wtime();
+    if (grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
+    if (f->steps % f->reorder_interval == 0) {
+        if (fluid_permute(f, f->grid.order) != 0 || grid_build(&f->grid, f->x, n, f->h) != 0)
+            goto oom;
+    }
+    if (reserve(f, n) != 0) goto oom;
+    f->stage_seconds[STAGE_GRID] += omp_get_wtime() - t0;
+    t0 = omp_get_wtime();
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++) walls_one(f, i);
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++) density_one(f, i);
+    if (has(f, STF_EFFECT_GRAVITY)) { /* Eq. 11 */
+        const double *g = f->def.gravity;
+#pragma omp parallel for schedule(static)
+        for (int i = 0; i < n; i++)
+            for (int a = 0; a < 3; a++) f->v[3 * i + a] += dt * g[a];
+    }
+    pressure_project(f, dt);
+    f->stage_seconds[STAGE_PRESSURE] += omp_get_wtime() - t0;
+    /* positions are unchanged so far: the checks look at the velocities */
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < 3 * n; i++) f->xprev[i] = f->x[i];
+    if (fluid_check(f, "carreau_yasuda pressure projection")) return -1;
+    t0 = omp_get_wtime();
+    memcpy(c->vel, f->v, (size_t)n * 3 * sizeof *c->vel);
+    viscosity_solve(f, dt);
+    wall_reactions(f, dt);
+    f->stage_seconds[STAGE_VISCOSITY] += omp_get_wtime() - t0;
+    if (fluid_check(f, f->def.cy.viscosity_solver == STF_VISCOSITY_EXPLICIT
+                           ? "carreau_yasuda viscosity (explicit)"
+                           : "carreau_yasuda viscosity (implicit)"))
+        return -1;
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < 3 * n; i++) f->x[i] += dt * f->v[i];
+    t0 = omp_get_wtime();
+    collide_all(f, dt);
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < 3 * n; i++) f->v[i] = (f->x[i] - f->xprev[i]) / dt;
+    f->stage_seconds[STAGE_COLLIDE] += omp_get_wtime() - t0;
+    if (fluid_check(f, "collisions")) return -1;
+    wrap_positions(f);
+    f->time += dt;
+    f->steps++;
+    return 0;
+oom:
+    snprintf(f->failure, sizeof f->failure, "step %ld (t = %.6g s): out of memory", f->steps + 1,
+             f->time);
+    return -1;
+}
+
+/* -------------------------------------------------------------------------- access */
+
+void stf_fluid_solver_stats(const stf_fluid *f, stf_solver_stats *st)
+{
+    if (f->cy) *st = f->cy->stats;
+    else memset(st, 0, sizeof *st);
+}
+
+void stf_fluid_get_pressures(const stf_fluid *f, double *p)
+{
+    const cy_state *c = f->cy;
+    for (int i = 0; i < f->n; i++)
+        p[i] = c && i < c->cap && f->steps > 0 ? c->ktot[i] * c->rho[i] : 0.0;
+}
+
+double stf_fluid_cy_rest_density(const stf_fluid *f) { return f->cy ? f->cy->rho0 : 0.0; }
+
+int cy_describe(const stf_fluid *f, char *buf, size_t len)
+{
+    const stf_cy_def *c = &f->def.cy;
+    return snprintf(buf, len,
+                    "model: carreau_yasuda\nmu0: %.9g  # m^2/s\nmu_inf: %.9g  # m^2/s\n"
+                    "K: %.9g  # s\nalpha: %.9g\nn: %.9g\neta: %.9g\n"
+                    "min_pressure_iterations: %d\nmax_pressure_iterations: %d\n"
+                    "viscosity_solver: %s\ncg_tolerance: %.9g\nmax_cg_iterations: %d\n"
+                    "rest_density_cy: %.9g  # kg/m^3, kernel sum of the lattice\n",
+                    c->mu0, c->mu_inf, c->K, c->alpha, c->n, c->eta, c->min_pressure_iterations,
+                    c->max_pressure_iterations,
+                    c->viscosity_solver == STF_VISCOSITY_EXPLICIT ? "explicit" : "implicit",
+                    c->cg_tolerance, c->max_cg_iterations, f->cy ? f->cy->rho0 : 0.0);
+}

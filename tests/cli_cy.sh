@@ -1,0 +1,85 @@
+# cli_cy.sh - the Carreau-Yasuda scenes through the command-line tool, at test resolution:
+#   - bad Carreau-Yasuda input exits 2 naming FILE:LINE:COL and the key, output untouched;
+#   - the block into a pool: the Newtonian block splashes and the non-Newtonian one does not
+#     (their expect blocks hold the ordering of fluid.com_rebound_height around 5 mm);
+#   - the shear-thickening collapse at dt = 3e-4 s: implicit viscosity runs, explicit stops
+#     with exit 3, a message naming the step and 'carreau_yasuda viscosity (explicit)', and
+#     a readable file up to the last good frame;
+#   - every frame carries the solver statistics (pressure iterations >= 2, density error < eta).
+#
+# usage: bash cli_cy.sh STF_BINARY PROJECT_DIR   (run in the build's tests directory)
+set -u
+
+STF=${1:?usage: cli_cy.sh STF_BINARY PROJECT_DIR}
+PROJ=${2:?usage: cli_cy.sh STF_BINARY PROJECT_DIR}
+SC="$PROJ/scenes"
+WORK=$(mktemp -d "${PWD}/cli_cy.XXXXXX") || { echo "cli_cy: no work dir" >&2; exit 1; }
+trap 'rm -rf "$WORK"' EXIT
+cd "$WORK" || exit 1
+export OMP_NUM_THREADS=1
+
+fails=0
+fail() { echo "cli_cy: FAIL: $*" >&2; fails=$((fails + 1)); }
+
+# ---- bad input: exit 2, FILE:LINE:COL: KEY, nothing written
+printf 'precious %s\n' "$$" >out.h5
+cp out.h5 out.h5.ref
+bad() { # NAME PATTERN FILE
+    "$STF" run "$3" -o out.h5 >"$1.out" 2>"$1.err"
+    local rc=$?
+    [ $rc -eq 2 ] || fail "$1: exit $rc, want 2"
+    grep -q -E "$2" "$1.err" || fail "$1: stderr '$(cat "$1.err")' does not match '$2'"
+    cmp -s out.h5 out.h5.ref || fail "$1: out.h5 was overwritten"
+    [ ! -e out.xmf ] || fail "$1: out.xmf created"
+}
+sed 's/n: 1, eta: 0.01}/n: -1, eta: 0.01}/' "$SC/cy_falling_column.yaml" >neg_n.yaml
+line=$(grep -n -m1 'carreau_yasuda: {' neg_n.yaml | cut -d: -f1)
+bad neg_n "^neg_n.yaml:$line:[0-9]+: effects.carreau_yasuda.n: must be > 0" neg_n.yaml
+sed 's/viscosity_solver: implicit/viscosity_solver: sideways/' "$SC/cy_collapse_thickening.yaml" >bad_solver.yaml
+line=$(grep -n -m1 'viscosity_solver: sideways' bad_solver.yaml | cut -d: -f1)
+bad bad_solver "^bad_solver.yaml:$line:[0-9]+: effects.carreau_yasuda.viscosity_solver: expected one of: implicit, explicit" bad_solver.yaml
+sed 's/  gravity: {g: \[0, 0, -9.81\]}/  gravity: {g: [0, 0, -9.81]}\n  pressure: {k: 1000}/' "$SC/cy_falling_column.yaml" >mixed.yaml
+line=$(grep -n -m1 '  pressure:' mixed.yaml | cut -d: -f1)
+bad mixed "^mixed.yaml:$line:3: effects.pressure: not part of fluid.model carreau_yasuda" mixed.yaml
+sed 's/  model: carreau_yasuda/  model: clavet_stf/' "$SC/cy_falling_column.yaml" >nomodel.yaml
+line=$(grep -n -m1 'carreau_yasuda: {' nomodel.yaml | cut -d: -f1)
+bad nomodel "^nomodel.yaml:$line:3: effects.carreau_yasuda: needs fluid.model: carreau_yasuda" nomodel.yaml
+
+# ---- the pool: splash ordering at 5 cm spacing
+for s in cy_block_into_pool cy_block_into_pool_nonnewtonian; do
+    "$STF" check "$SC/$s.yaml" --set fluid.spacing=0.05 -o "$s.h5" --quiet >"$s.check" 2>&1 ||
+        fail "$s: expectations failed: $(cat "$s.check")"
+done
+
+# ---- dt = 3e-4 s: implicit runs, explicit blows up (exit 3, named, last good frame kept);
+# at the scene's resolution (the explicit limit falls with the spacing squared), 0.06 s
+"$STF" run "$SC/cy_collapse_thickening.yaml" --duration 0.06 --set frame_rate=200 -o imp.h5 --quiet 2>imp.err ||
+    fail "implicit at dt = 3e-4 s failed: $(cat imp.err)"
+"$STF" run "$SC/cy_collapse_thickening.yaml" --duration 0.06 --set frame_rate=200 \
+    --set effects.carreau_yasuda.viscosity_solver=explicit -o exp.h5 --quiet 2>exp.err
+rc=$?
+[ $rc -eq 3 ] || fail "explicit at dt = 3e-4 s: exit $rc, want 3"
+grep -q -E "step [0-9]+ .*particle [0-9]+.*blew up.*carreau_yasuda viscosity \(explicit\)" exp.err ||
+    fail "explicit failure message: $(cat exp.err)"
+
+# ---- the files: solver statistics per frame, readable after the failure
+/usr/bin/python3 - imp.h5 exp.h5 <<'EOF' || fail "HDF5 solver statistics"
+import sys, h5py
+imp, exp = h5py.File(sys.argv[1], "r"), h5py.File(sys.argv[2], "r")
+frames = [k for k in imp.keys() if k.startswith("Step#")]
+assert len(frames) >= 9, frames
+for k in frames:
+    a = imp[k].attrs
+    if k == "Step#0":
+        continue
+    assert a["pressure_iterations_max"] >= 2, (k, dict(a))
+    assert a["density_error_max"] < 0.01, (k, dict(a))
+    assert a["viscosity_iterations_max"] >= 1, (k, dict(a))
+assert imp.attrs["pressure_iterations_mean"] >= 2
+ef = [k for k in exp.keys() if k.startswith("Step#")]
+assert len(ef) >= 1 and "TimeValue" in exp[ef[-1]].attrs, ef
+print("cli_cy: %d frames with solver statistics; explicit run kept %d frames" % (len(frames), len(ef)))
+EOF
+
+[ $fails -eq 0 ] && echo "cli_cy: ok"
+exit $((fails > 0))
