@@ -172,6 +172,7 @@ static int fluid_metrics(const stf_h5r *r, const run_geometry *g, stf_metrics *m
         }
         if (f == nf - 1) {
             m->particles = n;
+            m->final_com_height = c[2];
             for (int i = 0; g->has_container && i < n; i++) {
                 const double *p = x + 3 * i;
                 int in = 1;
@@ -309,6 +310,8 @@ char *stf_metrics_json(const stf_metrics *m)
     put_num(&b, m->finger_height);
     put(&b, ", \"surface_roughness\": ");
     put_num(&b, m->surface_roughness);
+    put(&b, ", \"final_com_height\": ");
+    put_num(&b, m->final_com_height);
     put(&b, ", \"impact_time\": ");
     put_num(&b, m->impact_time);
     put(&b, ", \"solid_duration\": ");
@@ -341,6 +344,7 @@ int stf_metrics_get(const stf_metrics *m, const char *key, double *v)
         else if (!strcmp(f, "com_rebound_height")) *v = m->com_rebound_height;
         else if (!strcmp(f, "finger_height")) *v = m->finger_height;
         else if (!strcmp(f, "surface_roughness")) *v = m->surface_roughness;
+        else if (!strcmp(f, "final_com_height")) *v = m->final_com_height;
         else if (!strcmp(f, "impact_time")) *v = m->impact_time;
         else if (!strcmp(f, "solid_duration")) *v = m->solid_duration;
         else return -1;

@@ -20,6 +20,7 @@
  *   stands above the typical surface; a single splashed particle does not count. Averaged
  *   over the frames of the second half of the run (the driven steady state).
  *   surface_roughness: standard deviation of the column heights in the last frame.
+ * - fluid.final_com_height: height of the fluid's centre of mass in the last frame.
  * - fluid.impact_time: the first frame at which the speed of the fluid's centre of mass is
  *   lower than at the frame before (a falling blob has hit something); NAN if never.
  * - fluid.solid_duration: time from impact_time until the fluid's radius of gyration (RMS
@@ -58,6 +59,7 @@ typedef struct stf_metrics {
     double com_rebound_height; /* m */
     double finger_height;      /* m */
     double surface_roughness;  /* m */
+    double final_com_height;   /* m */
     double impact_time;        /* s, NAN if never */
     double solid_duration;     /* s, NAN without an impact */
 } stf_metrics;
