@@ -124,6 +124,28 @@ static double finger_of(const double *x, int n, double spacing, double *rough)
     return finger;
 }
 
+/* Moves the particles inside the container (grown by one spacing; all particles without a
+ * container) to the front of x; returns how many. The surface is the contained fluid's:
+ * spilled particles lying outside are not columns of it. */
+static int inside_first(double *x, int n, const run_geometry *g)
+{
+    if (!g->has_container) return n;
+    int m = 0;
+    for (int i = 0; i < n; i++) {
+        const double *p = x + 3 * i;
+        int in = 1;
+        for (int a = 0; a < 3; a++) in &= p[a] >= g->lo[a] - g->spacing && p[a] <= g->hi[a] + g->spacing;
+        if (!in) continue;
+        for (int a = 0; a < 3; a++) {
+            double t = x[3 * m + a];
+            x[3 * m + a] = x[3 * i + a];
+            x[3 * i + a] = t;
+        }
+        m++;
+    }
+    return m;
+}
+
 static int fluid_metrics(const stf_h5r *r, const run_geometry *g, stf_metrics *m)
 {
     int nf = stf_h5r_frames(r);
@@ -166,7 +188,7 @@ static int fluid_metrics(const stf_h5r *r, const run_geometry *g, stf_metrics *m
         }
         if (f >= second_half) {
             double rough = 0;
-            m->finger_height += finger_of(x, n, g->spacing, &rough);
+            m->finger_height += finger_of(x, inside_first(x, n, g), g->spacing, &rough);
             counted++;
             if (f == nf - 1) m->surface_roughness = rough;
         }

@@ -15,7 +15,8 @@
  * - fluid.com_rebound_height: the largest rise of the fluid's centre of mass above any
  *   earlier height of it (a dropped blob's rebound; 0 if it never rises).
  * - fluid.finger_height: the fluid's surface as columns (cells of 2 spacings in x, y; a
- *   column's height is its highest particle). Per frame, the 95th percentile of the column
+ *   column's height is its highest particle; with a container, only the particles that
+ *   have not escaped it). Per frame, the 95th percentile of the column
  *   heights minus their median: how far the tallest 5% of the surface (fingers, clusters)
  *   stands above the typical surface; a single splashed particle does not count. Averaged
  *   over the frames of the second half of the run (the driven steady state).
