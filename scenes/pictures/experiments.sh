@@ -34,8 +34,8 @@ run gentle scenes/gentle_settle.yaml
 run vibration scenes/vibration.yaml
 run vibration_no_history scenes/vibration_no_history.yaml
 for t in vibration vibration_no_history; do
-    "$stf" render "$out/$t.h5" --color khist --max 20000 --frames 15,45,75,89 --width 320 --height 240 \
-        --camera 0.35,-0.45,0.4 --look 0,0,0.06 --montage "$pic/$t.png"
+    "$stf" render "$out/$t.h5" --color khist --max 20000 --frames 15,45,89 --width 300 --height 220 \
+        --camera 0.4,-0.5,0.45 --look 0,0,0.06 --montage "$pic/$t.png"
 done
 
 # Fig. 8: the bowling ball with full history and q = 0.2 against q = 0.5, d = 150
