@@ -138,7 +138,9 @@ static int make_fluid(stf_sim *s, char *err, size_t errlen)
     }
     for (int k = 0; k < sc->nblocks; k++) {
         const stf_block *b = &sc->blocks[k];
-        if (stf_fluid_add_block(s->fluid, b->lo, b->hi, b->velocity) <= 0) {
+        int added = b->radius > 0 ? stf_fluid_add_ball(s->fluid, b->center, b->radius, b->velocity)
+                                  : stf_fluid_add_block(s->fluid, b->lo, b->hi, b->velocity);
+        if (added <= 0) {
             snprintf(err, errlen, "%s:%d:%d: fluid.blocks.%d: holds no particle at this spacing "
                      "(or more than 10^8)", sc->path, b->line, b->col, k);
             return 2;

@@ -276,6 +276,28 @@ int stf_fluid_add_block(stf_fluid *f, const double lo[3], const double hi[3], co
     return added;
 }
 
+int stf_fluid_add_ball(stf_fluid *f, const double c[3], double r, const double v[3])
+{
+    double s = f->def.spacing;
+    if (!(r > 0)) return 0;
+    long m = (long)floor(r / s);
+    if (m > 250) return -1; /* (2m+1)^3 > 10^8 sites */
+    long side = 2 * m + 1;
+    if (reserve(f, f->n + (int)(side * side * side)) != 0) return -1;
+    int added = 0;
+    /* Sites c + (a, b, k) s: the lattice is symmetric about the centre. */
+    for (long k = -m; k <= m; k++)
+        for (long b = -m; b <= m; b++)
+            for (long a = -m; a <= m; a++) {
+                if ((double)(a * a + b * b + k * k) * s * s >= r * r) continue;
+                double x[3] = {c[0] + a * s, c[1] + b * s, c[2] + k * s};
+                lattice_jitter(f->def.jitter * s, (uint32_t)f->next_id, x);
+                if (stf_fluid_add_particle(f, x, v) < 0) return -1;
+                added++;
+            }
+    return added;
+}
+
 int stf_fluid_add_collider(stf_fluid *f, const stf_collider_def *def, char *err, size_t errlen)
 {
     if (f->ncolliders == f->collider_cap) {

@@ -101,7 +101,8 @@ static int cmp_double(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-/* Tallest column above the median column; the roughness (standard deviation) in *rough. */
+/* 95th percentile of the column heights above their median; the roughness (standard
+ * deviation) in *rough. */
 static double finger_of(const double *x, int n, double spacing, double *rough)
 {
     enum { MAXCOLS = 1 << 20 };
@@ -112,7 +113,9 @@ static double finger_of(const double *x, int n, double spacing, double *rough)
     if (m > 0) {
         qsort(h, (size_t)m, sizeof *h, cmp_double);
         double median = m % 2 ? h[m / 2] : 0.5 * (h[m / 2 - 1] + h[m / 2]);
-        finger = h[m - 1] - median;
+        double at = 0.95 * (m - 1); /* linear interpolation between ranks */
+        int lo = (int)floor(at), hi = lo + 1 < m ? lo + 1 : lo;
+        finger = h[lo] + (at - lo) * (h[hi] - h[lo]) - median;
         for (int c = 0; c < m; c++) mean += h[c] / m;
         for (int c = 0; c < m; c++) var += (h[c] - mean) * (h[c] - mean) / m;
     }
@@ -121,11 +124,34 @@ static double finger_of(const double *x, int n, double spacing, double *rough)
     return finger;
 }
 
+/* Moves the particles inside the container (grown by one spacing; all particles without a
+ * container) to the front of x; returns how many. The surface is the contained fluid's:
+ * spilled particles lying outside are not columns of it. */
+static int inside_first(double *x, int n, const run_geometry *g)
+{
+    if (!g->has_container) return n;
+    int m = 0;
+    for (int i = 0; i < n; i++) {
+        const double *p = x + 3 * i;
+        int in = 1;
+        for (int a = 0; a < 3; a++) in &= p[a] >= g->lo[a] - g->spacing && p[a] <= g->hi[a] + g->spacing;
+        if (!in) continue;
+        for (int a = 0; a < 3; a++) {
+            double t = x[3 * m + a];
+            x[3 * m + a] = x[3 * i + a];
+            x[3 * i + a] = t;
+        }
+        m++;
+    }
+    return m;
+}
+
 static int fluid_metrics(const stf_h5r *r, const run_geometry *g, stf_metrics *m)
 {
     int nf = stf_h5r_frames(r);
-    double com_lowest = INFINITY;
-    int last10 = nf - (nf + 9) / 10, counted = 0;
+    double com_lowest = INFINITY, speed_prev = NAN, rg0 = NAN;
+    int second_half = nf / 2, counted = 0;
+    m->impact_time = m->solid_duration = NAN;
     for (int f = 0; f < nf; f++) {
         int n = stf_h5r_frame_count(r, f);
         double *x = malloc((size_t)(n > 0 ? n : 1) * 3 * sizeof *x);
@@ -135,7 +161,20 @@ static int fluid_metrics(const stf_h5r *r, const run_geometry *g, stf_metrics *m
             free(v);
             return -1;
         }
-        double com = 0;
+        double com = 0, c[3] = {0, 0, 0}, vc[3] = {0, 0, 0};
+        for (int i = 0; i < n; i++)
+            for (int a = 0; a < 3; a++) c[a] += x[3 * i + a] / n, vc[a] += v[3 * i + a] / n;
+        double rg = 0;
+        for (int i = 0; i < n; i++)
+            for (int a = 0; a < 3; a++) rg += (x[3 * i + a] - c[a]) * (x[3 * i + a] - c[a]) / n;
+        rg = sqrt(rg);
+        double speed = sqrt(vc[0] * vc[0] + vc[1] * vc[1] + vc[2] * vc[2]);
+        double t = stf_h5r_frame_time(r, f);
+        if (f == 0) rg0 = rg;
+        if (isnan(m->impact_time) && speed < speed_prev) m->impact_time = t;
+        if (!isnan(m->impact_time) && isnan(m->solid_duration) && rg > 1.5 * rg0)
+            m->solid_duration = t - m->impact_time;
+        speed_prev = speed;
         for (int i = 0; i < n; i++) {
             double s = sqrt(v[3 * i] * v[3 * i] + v[3 * i + 1] * v[3 * i + 1] + v[3 * i + 2] * v[3 * i + 2]);
             if (!isfinite(s) || !isfinite(x[3 * i]) || !isfinite(x[3 * i + 1]) || !isfinite(x[3 * i + 2]))
@@ -147,14 +186,15 @@ static int fluid_metrics(const stf_h5r *r, const run_geometry *g, stf_metrics *m
             if (com < com_lowest) com_lowest = com;
             if (com - com_lowest > m->com_rebound_height) m->com_rebound_height = com - com_lowest;
         }
-        if (f >= last10) {
+        if (f >= second_half) {
             double rough = 0;
-            m->finger_height += finger_of(x, n, g->spacing, &rough);
+            m->finger_height += finger_of(x, inside_first(x, n, g), g->spacing, &rough);
             counted++;
             if (f == nf - 1) m->surface_roughness = rough;
         }
         if (f == nf - 1) {
             m->particles = n;
+            m->final_com_height = c[2];
             for (int i = 0; g->has_container && i < n; i++) {
                 const double *p = x + 3 * i;
                 int in = 1;
@@ -166,6 +206,8 @@ static int fluid_metrics(const stf_h5r *r, const run_geometry *g, stf_metrics *m
         free(v);
     }
     if (counted) m->finger_height /= counted;
+    if (!isnan(m->impact_time) && isnan(m->solid_duration))
+        m->solid_duration = m->time_end - m->impact_time; /* never spread: a lower bound */
     return 0;
 }
 
@@ -215,7 +257,7 @@ int stf_metrics_compute(const char *path, stf_metrics *m, char *err, size_t errl
             m->bodies[k] = t;
         }
     free(first);
-    int rc = fluid_metrics(r, &g, m);
+    int rc = fluid_metrics(r, &g, m); /* after time_end: solid_duration may need it */
     stf_h5r_close(r);
     if (rc != 0) {
         snprintf(err, errlen, "%s: cannot read the particle frames", path);
@@ -290,6 +332,12 @@ char *stf_metrics_json(const stf_metrics *m)
     put_num(&b, m->finger_height);
     put(&b, ", \"surface_roughness\": ");
     put_num(&b, m->surface_roughness);
+    put(&b, ", \"final_com_height\": ");
+    put_num(&b, m->final_com_height);
+    put(&b, ", \"impact_time\": ");
+    put_num(&b, m->impact_time);
+    put(&b, ", \"solid_duration\": ");
+    put_num(&b, m->solid_duration);
     put(&b, "}}\n");
     return b.s;
 }
@@ -318,6 +366,9 @@ int stf_metrics_get(const stf_metrics *m, const char *key, double *v)
         else if (!strcmp(f, "com_rebound_height")) *v = m->com_rebound_height;
         else if (!strcmp(f, "finger_height")) *v = m->finger_height;
         else if (!strcmp(f, "surface_roughness")) *v = m->surface_roughness;
+        else if (!strcmp(f, "final_com_height")) *v = m->final_com_height;
+        else if (!strcmp(f, "impact_time")) *v = m->impact_time;
+        else if (!strcmp(f, "solid_duration")) *v = m->solid_duration;
         else return -1;
         return 0;
     }

@@ -14,10 +14,20 @@
  *   float_duration = sink_time - first_contact_time.
  * - fluid.com_rebound_height: the largest rise of the fluid's centre of mass above any
  *   earlier height of it (a dropped blob's rebound; 0 if it never rises).
- * - fluid.finger_height: surface columns (cells of 2 spacings in x, y; height = highest
- *   particle) minus the median column height, tallest column, averaged over the frames of
- *   the last 10% of the run. surface_roughness: standard deviation of the column heights in
- *   the last frame.
+ * - fluid.finger_height: the fluid's surface as columns (cells of 2 spacings in x, y; a
+ *   column's height is its highest particle; with a container, only the particles that
+ *   have not escaped it). Per frame, the 95th percentile of the column
+ *   heights minus their median: how far the tallest 5% of the surface (fingers, clusters)
+ *   stands above the typical surface; a single splashed particle does not count. Averaged
+ *   over the frames of the second half of the run (the driven steady state).
+ *   surface_roughness: standard deviation of the column heights in the last frame.
+ * - fluid.final_com_height: height of the fluid's centre of mass in the last frame.
+ * - fluid.impact_time: the first frame at which the speed of the fluid's centre of mass is
+ *   lower than at the frame before (a falling blob has hit something); NAN if never.
+ * - fluid.solid_duration: time from impact_time until the fluid's radius of gyration (RMS
+ *   distance of the particles from their centre of mass) first exceeds 1.5 times its value
+ *   at t = 0: how long a dropped blob keeps its shape before it spreads as a liquid. If it
+ *   never spreads that far, time_end - impact_time (a lower bound); NAN without an impact.
  * - fluid.escaped: particles of the last frame outside the container's inner box (grown by
  *   one spacing; the open top is not a wall up to twice the container height). */
 #ifndef STF_METRICS_H
@@ -50,6 +60,9 @@ typedef struct stf_metrics {
     double com_rebound_height; /* m */
     double finger_height;      /* m */
     double surface_roughness;  /* m */
+    double final_com_height;   /* m */
+    double impact_time;        /* s, NAN if never */
+    double solid_duration;     /* s, NAN without an impact */
 } stf_metrics;
 
 /* Computes the metrics of the run in path. Returns 0, or 2 with a message (bad file). */

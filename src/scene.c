@@ -403,9 +403,16 @@ static int normalise(double *v, int n)
 
 /* ----------------------------------------------------------------------- the sections */
 
+static int has_key(const mapv *m, const char *key)
+{
+    struct fy_node *k;
+    lookup(m, key, &k);
+    return k != NULL;
+}
+
 static int parse_blocks(loader *L, const mapv *fluid)
 {
-    static const char *const keys[] = {"min", "max", "velocity", NULL};
+    static const char *const keys[] = {"min", "max", "center", "radius", "velocity", NULL};
     struct fy_node *k, *v = lookup(fluid, "blocks", &k);
     char path[64];
     if (!k) return missing(L, fluid, "blocks", NULL);
@@ -421,12 +428,26 @@ static int parse_blocks(loader *L, const mapv *fluid)
         snprintf(path, sizeof path, "fluid.blocks.%d", i);
         if (is_null(item)) return fail(L, item, k, path, "expected a mapping");
         if (open_map(L, item, item, path, keys, &bm)) return SCENE_BAD;
-        if (need_vec(L, &bm, "min", R_ANY, 3, b->lo) || need_vec(L, &bm, "max", R_ANY, 3, b->hi))
-            return SCENE_BAD;
         if (get_vec(L, &bm, "velocity", R_ANY, 3, b->velocity) < 0) return SCENE_BAD;
-        for (int c = 0; c < 3; c++) {
-            if (!(b->lo[c] < b->hi[c]))
-                return fail_value(L, &bm, "max", "must be > min in every component");
+        int r = get_num(L, &bm, "radius", R_POS, &b->radius);
+        if (r < 0) return SCENE_BAD;
+        if (r > 0) { /* a ball: centre and radius; lo, hi its bounding box */
+            if (has_key(&bm, "min")) return fail_key(L, &bm, "min", "not allowed with radius (a ball)");
+            if (has_key(&bm, "max")) return fail_key(L, &bm, "max", "not allowed with radius (a ball)");
+            if (need_vec(L, &bm, "center", R_ANY, 3, b->center)) return SCENE_BAD;
+            for (int c = 0; c < 3; c++) {
+                b->lo[c] = b->center[c] - b->radius;
+                b->hi[c] = b->center[c] + b->radius;
+            }
+        } else {
+            if (has_key(&bm, "center"))
+                return fail_key(L, &bm, "center", "only allowed with radius (a ball)");
+            if (need_vec(L, &bm, "min", R_ANY, 3, b->lo) || need_vec(L, &bm, "max", R_ANY, 3, b->hi))
+                return SCENE_BAD;
+            for (int c = 0; c < 3; c++) {
+                if (!(b->lo[c] < b->hi[c]))
+                    return fail_value(L, &bm, "max", "must be > min in every component");
+            }
         }
         b->line = b->col = 1;
         node_mark(item, &b->line, &b->col);
@@ -868,7 +889,7 @@ static const char *const body_metrics[] = {
     "float_duration",     NULL};
 static const char *const fluid_metrics[] = {
     "particles",     "escaped",           "max_speed", "com_rebound_height",
-    "finger_height", "surface_roughness", NULL};
+    "finger_height", "surface_roughness", "final_com_height", "impact_time", "solid_duration", NULL};
 
 static int in_list(const char *s, const char *const *list)
 {

@@ -177,6 +177,10 @@ void stf_fluid_destroy(stf_fluid *f);
 /* Fills the box [lo,hi] (m) with particles on a cubic lattice at the fluid's spacing,
  * moving with velocity v (m/s). Returns the number of particles added. */
 int stf_fluid_add_block(stf_fluid *f, const double lo[3], const double hi[3], const double v[3]);
+/* Fills a ball of radius r (m) around c (m) with particles on a cubic lattice through c
+ * (the lattice sites closer than r to c), moving with velocity v (m/s). Returns the number
+ * of particles added, or -1 (out of memory, or more than 10^8 sites). */
+int stf_fluid_add_ball(stf_fluid *f, const double c[3], double r, const double v[3]);
 /* Adds one particle. Returns its index. */
 int stf_fluid_add_particle(stf_fluid *f, const double x[3], const double v[3]);
 
@@ -256,6 +260,9 @@ enum stf_motion {
 typedef struct stf_block {
     double lo[3], hi[3]; /* m: opposite corners of the box filled with particles */
     double velocity[3];  /* m/s: initial velocity of its particles */
+    double radius;       /* m: > 0 makes the block a ball of this radius around center
+                            (lo, hi are then its bounding box); 0: the box [lo, hi] */
+    double center[3];    /* m: centre of a ball block */
     int line, col;       /* where it was given (1-based), for messages */
 } stf_block;
 

@@ -435,8 +435,65 @@ static void test_files(void)
     if (d) closedir(d);
 }
 
+/* A ball block: centre and radius land in the block with its bounding box; the fluid gets
+ * the lattice sites inside the ball (about its volume / spacing^3); a ball with a box corner,
+ * or a centre without a radius, is an error naming the key. */
+static void test_ball_block(void)
+{
+    const char *text = "duration: 1\nfluid:\n  spacing: 0.01\n  blocks:\n"
+                       "    - center: [0.1, 0, 0.2]\n      radius: 0.05\n"
+                       "      velocity: [0, 0, -1]\neffects: {}\n";
+    char err[512] = "";
+    stf_scene *s = NULL;
+    int rc = stf_scene_load_string("t.yaml", text, NULL, 0, &s, err, sizeof err);
+    CHECK(rc == 0 && s, "ball scene: %s", err);
+    if (s) {
+        const stf_block *b = &s->blocks[0];
+        CHECK_NEAR(b->radius, 0.05, 0, "radius");
+        CHECK_NEAR(b->center[0], 0.1, 0, "center");
+        CHECK_NEAR(b->lo[0], 0.05, 1e-15, "bounding box lo");
+        CHECK_NEAR(b->hi[2], 0.25, 1e-15, "bounding box hi");
+        stf_fluid *f = NULL;
+        if (stf_fluid_create(&s->fluid, &f, err, sizeof err) == 0) {
+            int n = stf_fluid_add_ball(f, b->center, b->radius, b->velocity);
+            double want = 4.0 / 3.0 * 3.14159265358979 * 125.0; /* (r / spacing)^3 = 125 */
+            CHECK(n > 0 && fabs(n - want) < 0.05 * want, "ball of %d particles, volume says %.0f", n, want);
+            double *x = malloc((size_t)n * 3 * sizeof *x);
+            stf_fluid_get_positions(f, x);
+            double c[3] = {0, 0, 0}, rmax = 0;
+            for (int i = 0; i < n; i++)
+                for (int a = 0; a < 3; a++) c[a] += x[3 * i + a] / n;
+            for (int i = 0; i < n; i++) {
+                double d2 = 0;
+                for (int a = 0; a < 3; a++) d2 += (x[3 * i + a] - b->center[a]) * (x[3 * i + a] - b->center[a]);
+                rmax = fmax(rmax, sqrt(d2));
+            }
+            /* symmetric about the centre (jitter averages out); no site beyond the radius + jitter */
+            CHECK_NEAR(c[0], 0.1, 2e-4, "ball centre x");
+            CHECK_NEAR(c[2], 0.2, 2e-4, "ball centre z");
+            CHECK(rmax < 0.05 + 0.2 * 0.01 * sqrt(3.0), "site at %g from the centre", rmax);
+            free(x);
+            stf_fluid_destroy(f);
+        }
+    }
+    stf_scene_free(s);
+    EXPECT_ERROR("duration: 1\nfluid:\n  spacing: 0.01\n  blocks:\n"
+                 "    - center: [0, 0, 0]\n      radius: 0.05\n      min: [0, 0, 0]\neffects: {}\n",
+                 "t.yaml:7:7: fluid.blocks.0.min: not allowed with radius", NULL);
+    EXPECT_ERROR("duration: 1\nfluid:\n  spacing: 0.01\n  blocks:\n"
+                 "    - center: [0, 0, 0]\n      min: [0, 0, 0]\n      max: [1, 1, 1]\neffects: {}\n",
+                 "t.yaml:5:7: fluid.blocks.0.center: only allowed with radius", NULL);
+    EXPECT_ERROR("duration: 1\nfluid:\n  spacing: 0.01\n  blocks:\n"
+                 "    - radius: 0.05\neffects: {}\n",
+                 "fluid.blocks.0.center: required key is missing", NULL);
+    EXPECT_ERROR("duration: 1\nfluid:\n  spacing: 0.01\n  blocks:\n"
+                 "    - center: [0, 0, 0]\n      radius: -1\neffects: {}\n",
+                 "fluid.blocks.0.radius: must be > 0", NULL);
+}
+
 int main(void)
 {
+    test_ball_block();
     test_full();
     test_defaults();
     test_errors();

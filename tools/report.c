@@ -61,5 +61,8 @@ int cli_report(int argc, char **argv)
     line("com_rebound_height", m.com_rebound_height, "m");
     line("finger_height", m.finger_height, "m");
     line("surface_roughness", m.surface_roughness, "m");
+    line("final_com_height", m.final_com_height, "m");
+    line("impact_time", m.impact_time, "s");
+    line("solid_duration", m.solid_duration, "s");
     return 0;
 }

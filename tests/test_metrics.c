@@ -1,0 +1,108 @@
+/* test_metrics.c - the fluid metrics of src/metrics.h on output files whose answer is known
+ * by construction (written with the real HDF5 writer, read back by stf_metrics_compute):
+ * finger_height is the 95th percentile of the column heights over their median (a single
+ * splashed particle does not count), impact_time is the first drop in centre-of-mass speed,
+ * solid_duration runs from it until the radius of gyration passes 1.5x its start,
+ * com_rebound_height and final_com_height follow the centre of mass. */
+#define _POSIX_C_SOURCE 200809L
+#include "h5io.h"
+#include "metrics.h"
+#include "test_util.h"
+
+#include <stdlib.h>
+#include <unistd.h>
+
+enum { NC = 10, NPART = NC * NC }; /* a 10 x 10 grid of columns, one particle each */
+
+static const double S = 0.01; /* spacing, m: the columns are 2 spacings wide */
+
+/* One particle per column; heights: 90 at 0.05 m, 9 at 0.09 m, one splash at 0.5 m. */
+static void surface(int fingers, double *x)
+{
+    for (int i = 0; i < NPART; i++) {
+        x[3 * i] = (i % NC + 0.5) * 2 * S;
+        x[3 * i + 1] = (i / NC + 0.5) * 2 * S;
+        x[3 * i + 2] = !fingers || i < 90 ? 0.05 : i < 99 ? 0.09 : 0.5;
+    }
+}
+
+static void test_finger_height(const char *path)
+{
+    char err[512];
+    stf_h5 *h;
+    CHECK(stf_h5_create(path, &h, err, sizeof err) == 0, "create: %s", err);
+    if (!h) return;
+    stf_h5_attr_double(h, "spacing", S);
+    double x[3 * NPART], v[3 * NPART] = {0};
+    /* frames 0-1 flat, 2-3 with fingers: the second half (frames 2, 3) has fingers */
+    for (int f = 0; f < 4; f++) {
+        surface(f >= 2, x);
+        CHECK(stf_h5_write_frame(h, 0.1 * f, NPART, x, v, NULL, NULL) == 0, "frame %d", f);
+    }
+    CHECK(stf_h5_close(h, err, sizeof err) == 0, "close: %s", err);
+    stf_metrics m;
+    CHECK(stf_metrics_compute(path, &m, err, sizeof err) == 0, "metrics: %s", err);
+    /* sorted heights: ranks 0-89 at 0.05, 90-98 at 0.09, 99 at 0.5; the 95th percentile is
+     * rank 94.05, between two 0.09 columns; the median 0.05 */
+    CHECK_NEAR(m.finger_height, 0.04, 1e-6, "finger_height");
+    CHECK(m.impact_time != m.impact_time, "no impact in a still layer: %g", m.impact_time);
+}
+
+/* A ball of 100 points: centre of mass at com, radius scaled by scale, all moving at vz. */
+static void ball(double com, double scale, double vz, double *x, double *v)
+{
+    for (int i = 0; i < NPART; i++) {
+        double a = 2.399963 * i, z = 1.0 - 2.0 * (i + 0.5) / NPART, r = sqrt(1 - z * z);
+        double p[3] = {r * cos(a), r * sin(a), z};
+        for (int c = 0; c < 3; c++) {
+            x[3 * i + c] = 0.05 * scale * p[c] + (c == 2 ? com : 0);
+            v[3 * i + c] = c == 2 ? vz : 0;
+        }
+    }
+}
+
+static void test_drop(const char *path)
+{
+    /* t = 0 .. 0.7 s: falls faster until 0.2 s, hits (speed drops at 0.3 s), rebounds to
+     * 0.5 m, spreads: 1.0, 1.0, 1.0, 1.0, 1.2, 1.4, 1.6, 1.8 times its radius */
+    static const double com[] = {1.0, 0.9, 0.7, 0.4, 0.5, 0.45, 0.42, 0.41};
+    static const double vz[] = {-0.5, -1.5, -2.5, -0.5, 0.4, -0.2, -0.1, 0.0};
+    static const double scale[] = {1.0, 1.0, 1.0, 1.0, 1.2, 1.4, 1.6, 1.8};
+    char err[512];
+    stf_h5 *h;
+    CHECK(stf_h5_create(path, &h, err, sizeof err) == 0, "create: %s", err);
+    if (!h) return;
+    stf_h5_attr_double(h, "spacing", S);
+    double x[3 * NPART], v[3 * NPART];
+    for (int f = 0; f < 8; f++) {
+        ball(com[f], scale[f], vz[f], x, v);
+        CHECK(stf_h5_write_frame(h, 0.1 * f, NPART, x, v, NULL, NULL) == 0, "frame %d", f);
+    }
+    CHECK(stf_h5_close(h, err, sizeof err) == 0, "close: %s", err);
+    stf_metrics m;
+    CHECK(stf_metrics_compute(path, &m, err, sizeof err) == 0, "metrics: %s", err);
+    CHECK_NEAR(m.impact_time, 0.3, 1e-12, "impact_time");
+    CHECK_NEAR(m.solid_duration, 0.3, 1e-12, "solid_duration (1.6 > 1.5 at 0.6 s)");
+    CHECK_NEAR(m.com_rebound_height, 0.1, 1e-6, "com_rebound_height");
+    CHECK_NEAR(m.final_com_height, 0.41, 1e-6, "final_com_height");
+    double got;
+    CHECK(stf_metrics_get(&m, "fluid.solid_duration", &got) == 0 && got == m.solid_duration,
+          "expect key fluid.solid_duration");
+    CHECK(stf_metrics_get(&m, "fluid.impact_time", &got) == 0, "expect key fluid.impact_time");
+    CHECK(stf_metrics_get(&m, "fluid.final_com_height", &got) == 0, "key final_com_height");
+}
+
+int main(void)
+{
+    char path[] = "/tmp/stf_test_metricsXXXXXX";
+    int fd = mkstemp(path);
+    if (fd < 0) return 1;
+    close(fd);
+    test_finger_height(path);
+    test_drop(path);
+    unlink(path);
+    char xmf[sizeof path + 8];
+    snprintf(xmf, sizeof xmf, "%s.xmf", path);
+    unlink(xmf);
+    return test_result("test_metrics");
+}
