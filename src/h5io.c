@@ -563,7 +563,25 @@ static long frame_step(const char *name)
     return (*end || errno) ? -1 : n;
 }
 
-/* Number of elements of a 1-D dataset, or -1 (absent, wrong rank, too large). */
+/* 1 if type t (closed here) is a standard IEEE float or integer. A damaged file can
+ * declare, say, a 260-byte float, and HDF5 1.10's conversion of that to double writes out
+ * of bounds: such data is refused before it is read. */
+static int standard_number_type(hid_t t)
+{
+    if (t < 0) return 0;
+    const hid_t ok[] = {H5T_IEEE_F32LE, H5T_IEEE_F64LE, H5T_IEEE_F32BE, H5T_IEEE_F64BE,
+                        H5T_STD_I8LE,   H5T_STD_I16LE,  H5T_STD_I32LE,  H5T_STD_I64LE,
+                        H5T_STD_U8LE,   H5T_STD_U16LE,  H5T_STD_U32LE,  H5T_STD_U64LE,
+                        H5T_STD_I32BE,  H5T_STD_I64BE,  H5T_STD_U32BE,  H5T_STD_U64BE};
+    int good = 0;
+    for (size_t i = 0; i < sizeof ok / sizeof ok[0] && !good; i++)
+        good = H5Tequal(t, ok[i]) > 0;
+    H5Tclose(t);
+    return good;
+}
+
+/* Number of elements of a 1-D dataset, or -1 (absent, wrong rank, too large, not a
+ * standard number type). */
 static long dataset_len_1d(hid_t g, const char *name)
 {
     if (H5Lexists(g, name, H5P_DEFAULT) <= 0) return -1;
@@ -571,7 +589,7 @@ static long dataset_len_1d(hid_t g, const char *name)
     hid_t s = d < 0 ? -1 : H5Dget_space(d);
     hsize_t dim = 0;
     long len = -1;
-    if (s >= 0 && H5Sget_simple_extent_ndims(s) == 1 &&
+    if (s >= 0 && standard_number_type(H5Dget_type(d)) && H5Sget_simple_extent_ndims(s) == 1 &&
         H5Sget_simple_extent_dims(s, &dim, NULL) == 1 && dim <= 0x7fffffff)
         len = (long)dim;
     close_id(s);
@@ -585,7 +603,7 @@ static int read_attr_double(hid_t obj, const char *name, double *value)
     hid_t a = H5Aopen(obj, name, H5P_DEFAULT);
     hid_t s = a < 0 ? -1 : H5Aget_space(a);
     int rc = -1;
-    if (s >= 0 && H5Sget_simple_extent_npoints(s) == 1 &&
+    if (s >= 0 && H5Sget_simple_extent_npoints(s) == 1 && standard_number_type(H5Aget_type(a)) &&
         H5Aread(a, H5T_NATIVE_DOUBLE, value) >= 0)
         rc = 0;
     close_id(s);
@@ -837,7 +855,8 @@ static long series_rows(hid_t g, int s)
     int rank = body_cols[s] ? 2 : 1;
     hsize_t dims[2] = {0, 0};
     long rows = -1;
-    if (sp >= 0 && H5Sget_simple_extent_dims(sp, dims, NULL) == rank &&
+    if (sp >= 0 && standard_number_type(H5Dget_type(d)) &&
+        H5Sget_simple_extent_dims(sp, dims, NULL) == rank &&
         (rank == 1 || dims[1] == (hsize_t)body_cols[s]) && dims[0] <= 0x7fffffff)
         rows = (long)dims[0];
     close_id(sp);
