@@ -80,6 +80,66 @@ struct stf_h5 {
 
 const char *stf_h5_last_error(const stf_h5 *h) { return h ? h->err : "no file"; }
 
+/* File access properties that keep HDF5 from writing metadata between our flushes.
+ *
+ * A kill -9 must leave a readable file. HDF5's metadata cache evicts dirty entries (a
+ * group's symbol table, a B-tree node) whenever it is full, so without this the file on disk
+ * could name objects beyond the end-of-allocation the superblock records; h5py then fails
+ * with "addr overflow" (3 of 80 kills during a frame every step, measured). With eviction
+ * off, metadata reaches the disk only in H5Fflush, which we call after each complete frame
+ * or body row; the cache is emptied by reopening the file when it grows (flush_and_bound). */
+static hid_t no_eviction_fapl(void)
+{
+    hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
+    H5AC_cache_config_t mdc;
+    memset(&mdc, 0, sizeof mdc);
+    mdc.version = H5AC__CURR_CACHE_CONFIG_VERSION;
+    if (fapl < 0 || H5Pget_mdc_config(fapl, &mdc) < 0) goto fail;
+    mdc.evictions_enabled = 0;
+    mdc.incr_mode = H5C_incr__off;
+    mdc.flash_incr_mode = H5C_flash_incr__off;
+    mdc.decr_mode = H5C_decr__off;
+    if (H5Pset_mdc_config(fapl, &mdc) < 0) goto fail;
+    return fapl;
+fail:
+    close_id(fapl);
+    return -1;
+}
+
+enum { MDC_REOPEN_BYTES = 2 << 20 }; /* metadata kept in memory before the file is reopened */
+
+/* Flushes the file; then, when the cache holds more than MDC_REOPEN_BYTES (it never evicts,
+ * see no_eviction_fapl), closes and reopens the file to empty it. Returns 0 or -1. */
+static int flush_and_bound(stf_h5 *h)
+{
+    if (H5Fflush(h->file, H5F_SCOPE_GLOBAL) < 0) return -1;
+    size_t max_size = 0, min_clean = 0, cur_size = 0;
+    int entries = 0;
+    if (H5Fget_mdc_size(h->file, &max_size, &min_clean, &cur_size, &entries) < 0) return -1;
+    if (cur_size <= MDC_REOPEN_BYTES) return 0;
+    hid_t fapl = no_eviction_fapl();
+    H5Fclose(h->file);
+    H5garbage_collect(); /* HDF5 keeps freed cache entries on its free lists otherwise */
+    h->file = fapl < 0 ? -1 : H5Fopen(h->path, H5F_ACC_RDWR, fapl);
+    close_id(fapl);
+    return h->file < 0 ? -1 : 0;
+}
+
+int stf_h5_flush_for_reading(stf_h5 *h)
+{
+    if (!h || H5Fflush(h->file, H5F_SCOPE_GLOBAL) < 0) return -1;
+    hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
+    H5AC_cache_config_t mdc;
+    memset(&mdc, 0, sizeof mdc);
+    mdc.version = H5AC__CURR_CACHE_CONFIG_VERSION;
+    int rc = fapl >= 0 && H5Pget_mdc_config(fapl, &mdc) >= 0 && /* the defaults */
+                     H5Fset_mdc_config(h->file, &mdc) >= 0
+                 ? 0 : -1;
+    close_id(fapl);
+    if (rc) snprintf(h->err, sizeof h->err, "cannot reset the metadata cache");
+    return rc;
+}
+
 int stf_h5_create(const char *path, stf_h5 **out, char *err, size_t errlen)
 {
     *out = NULL;
@@ -101,7 +161,9 @@ int stf_h5_create(const char *path, stf_h5 **out, char *err, size_t errlen)
     fclose(probe);
     /* Default (earliest) format: no superblock status flags, so a file left by a killed
      * writer opens without h5clear. */
-    h->file = H5Fcreate(path, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    hid_t fapl = no_eviction_fapl();
+    h->file = fapl < 0 ? -1 : H5Fcreate(path, H5F_ACC_TRUNC, H5P_DEFAULT, fapl);
+    close_id(fapl);
     if (h->file < 0) {
         fmt_err(err, errlen, "%s: cannot create HDF5 file", path);
         free(h->path);
@@ -251,13 +313,21 @@ int stf_h5_write_frame(stf_h5 *h, double t, int n, const double *xyz, const doub
     }
     char gname[32];
     snprintf(gname, sizeof gname, FRAME_PREFIX "%d", h->nframes);
-    hid_t g = H5Gcreate2(h->file, gname, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-    /* TimeValue goes last: the reader treats a group without it as incomplete. */
+    /* The group is built unnamed and linked into / last, so the root's symbol table
+     * changes only once the frame is complete (a killed run leaves no half frame under a
+     * name). TimeValue goes last too: the reader treats a group without it as incomplete. */
+    hid_t g = H5Gcreate_anon(h->file, H5P_DEFAULT, H5P_DEFAULT);
+    /* Two flushes: HDF5 writes the superblock (and so the end of allocation it records)
+     * after the objects, so a kill inside a flush can leave on disk an object that points
+     * past that end. The first flush writes the new, still unreachable frame and the new
+     * end; only the second writes the (small) change that links it. */
     int rc = (g >= 0 && frame_datasets(g, n, xyz, v, khist, id) == 0 &&
-              put_attr(g, "TimeValue", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, &t) == 0)
+              put_attr(g, "TimeValue", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, &t) == 0 &&
+              H5Fflush(h->file, H5F_SCOPE_GLOBAL) >= 0 &&
+              H5Olink(g, h->file, gname, H5P_DEFAULT, H5P_DEFAULT) >= 0)
                  ? 0 : -1;
     close_id(g);
-    if (rc == 0 && H5Fflush(h->file, H5F_SCOPE_GLOBAL) < 0) rc = -1;
+    if (rc == 0 && flush_and_bound(h) < 0) rc = -1;
     if (rc == 0) rc = remember_frame(h, t, n, khist != NULL, id != NULL);
     if (rc != 0) snprintf(h->err, sizeof h->err, "cannot write frame %s", gname);
     return rc;
@@ -342,7 +412,7 @@ int stf_h5_body_append(stf_h5 *h, const char *name, double t, const double pos[3
     int rc = body >= 0 ? body_rows(body, created, rows) : -1;
     close_id(body);
     close_id(bodies);
-    if (rc == 0 && H5Fflush(h->file, H5F_SCOPE_GLOBAL) < 0) rc = -1;
+    if (rc == 0 && flush_and_bound(h) < 0) rc = -1;
     if (rc != 0) snprintf(h->err, sizeof h->err, "cannot append to /bodies/%s", name);
     return rc;
 }

@@ -253,10 +253,12 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
     if (!a->quiet && isatty(2)) fputc('\n', stderr);
     stf_h5_attr_long(h, "particles", stf_fluid_count(sim->fluid));
     stf_h5_attr_long(h, "substeps", sim->steps);
+    stf_h5_attr_long(h, "spring_saturated_substeps", stf_fluid_saturated_steps(sim->fluid));
     stf_h5_attr_double(h, "wall_seconds", wall);
     stf_h5_attr_double(h, "dt_min", sc->dt);
     stf_h5_attr_double(h, "dt_max", sc->dt);
     if (status == 2) fprintf(stderr, "stf: writing %s failed: %s\n", out, stf_h5_last_error(h));
+    stf_h5_flush_for_reading(h);
     if (stf_metrics_compute(out, m, err, sizeof err) == 0) {
         char *json = stf_metrics_json(m);
         if (json) stf_h5_write_metrics_json(h, json);
