@@ -504,6 +504,11 @@ long stf_fluid_spring_count(const stf_fluid *f)
     return f->springs.n_alloc ? springs_total(&f->springs, f->n) : 0;
 }
 
+long stf_fluid_saturated_steps(const stf_fluid *f)
+{
+    return f->springs.n_alloc ? f->springs.saturated_steps : 0;
+}
+
 int stf_fluid_history_steps(const stf_fluid *f)
 {
     if (!has(f, STF_EFFECT_HISTORY)) return 0;

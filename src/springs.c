@@ -39,6 +39,7 @@ void springs_free(stf_springs *s)
     free(s->count);
     free(s->count2);
     free(s->mark);
+    free(s->gain);
     memset(s, 0, sizeof *s);
 }
 
@@ -52,7 +53,9 @@ int springs_resize(stf_springs *s, int n)
     if (c2) s->count2 = c2;
     int64_t *m = realloc(s->mark, (size_t)cap * (size_t)s->nthreads * sizeof *m);
     if (m) s->mark = m;
-    if (!c || !c2 || !m || alloc_rows(s, cap, s->stride) != 0) return -1;
+    double *g = realloc(s->gain, (size_t)cap * sizeof *g);
+    if (g) s->gain = g;
+    if (!c || !c2 || !m || !g || alloc_rows(s, cap, s->stride) != 0) return -1;
     /* Rows keep their stride, so existing lists stay where they are. */
     memset(s->count + s->n_alloc, 0, (size_t)(cap - s->n_alloc) * sizeof *c);
     for (size_t k = 0; k < (size_t)cap * (size_t)s->nthreads; k++) s->mark[k] = -1;
@@ -146,12 +149,23 @@ static int adjust_one(stf_fluid *f, int i, int64_t stamp, int64_t *mark)
     return cnt;
 }
 
-/* Alg. 3 with Eq. 6 for particle i: gathers -D/2 of each of its springs into f->dx. */
-static void displace_one(stf_fluid *f, int i, double dt, double khist_scale)
+/* Alg. 3 with Eq. 6 for particle i: gathers -D/2 of each of its springs into f->dx.
+ *
+ * Saturation. The pair (i, j) is pulled towards its rest length by the gain
+ * c_ij = dt^2 k_ij (1 - L/h), half on each side. Taken together (Jacobi) the update of
+ * particle i moves it by up to sum_j c_ij times its springs' deformations; by Gershgorin the
+ * update's eigenvalues stay <= 1 (no overshoot) when that sum is <= 1 for every particle.
+ * The history term can make k_ij arbitrarily large (at 100 times the bowling scene's k_hist,
+ * sum c_ij reaches tens and the run blew up in 20 steps), so with scale != NULL each gain is
+ * multiplied by min(scale_i, scale_j), scale_i = min(1, 1 / sum_j c_ij): a spring never does
+ * more than become rigid within the step. The factor is symmetric, so the two halves of a
+ * pair stay exact negatives (momentum). *gain gets sum_j c_ij. */
+static void displace_one(stf_fluid *f, int i, double dt, double khist_scale, const double *scale,
+                         double *gain)
 {
     const stf_springs *s = &f->springs;
     const double *x = f->x, *D = f->hist.D;
-    double h = f->h, dx = 0, dy = 0, dz = 0, ksum = 0;
+    double h = f->h, dx = 0, dy = 0, dz = 0, ksum = 0, csum = 0;
     int n = s->count[i];
     const int32_t *p = s->partner + (size_t)i * s->stride;
     const double *Ls = s->rest + (size_t)i * s->stride;
@@ -170,7 +184,10 @@ static void displace_one(stf_fluid *f, int i, double dt, double khist_scale)
             ksum += kh;
         }
         double L = Ls[k];
-        double mag = 0.5 * dt * dt * kij * (1.0 - L / h) * (L - r) / r;
+        double c = dt * dt * kij * (1.0 - L / h);
+        csum += c;
+        if (scale) c *= scale[i] < scale[j] ? scale[i] : scale[j];
+        double mag = 0.5 * c * (L - r) / r;
         dx -= mag * rx;
         dy -= mag * ry;
         dz -= mag * rz;
@@ -178,6 +195,7 @@ static void displace_one(stf_fluid *f, int i, double dt, double khist_scale)
     f->dx[3 * i] = dx;
     f->dx[3 * i + 1] = dy;
     f->dx[3 * i + 2] = dz;
+    if (gain) *gain = csum;
     if (f->khist_mean) f->khist_mean[i] = n > 0 ? (float)(ksum / n) : 0.0f;
 }
 
@@ -216,8 +234,25 @@ int springs_step(stf_fluid *f, double dt)
                              ? f->def.k_hist * history_scale(f->def.q, dt)
                              : 0.0;
     if (f->def.reference_spacing > 0) khist_scale *= f->def.reference_spacing / f->def.spacing;
+    double most = 0;
+#pragma omp parallel for schedule(static) reduction(max : most)
+    for (int i = 0; i < n; i++) {
+        double g;
+        displace_one(f, i, dt, khist_scale, NULL, &g);
+        f->springs.gain[i] = g;
+        if (g > most) most = g;
+    }
+    if (most > 1.0) { /* saturate (see displace_one); the common case costs nothing more */
 #pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) displace_one(f, i, dt, khist_scale);
+        for (int i = 0; i < n; i++) {
+            double g = f->springs.gain[i];
+            f->springs.gain[i] = g > 1.0 ? 1.0 / g : 1.0;
+        }
+#pragma omp parallel for schedule(static)
+        for (int i = 0; i < n; i++) displace_one(f, i, dt, khist_scale, f->springs.gain, NULL);
+        f->springs.saturated_steps++;
+    }
+    f->springs.max_gain = most;
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < 3 * n; i++) f->x[i] += f->dx[i];
     return 0;
@@ -255,5 +290,5 @@ long springs_total(const stf_springs *s, int n)
 size_t springs_bytes(const stf_springs *s)
 {
     return (size_t)s->n_alloc * ((size_t)s->stride * 2 * (sizeof(int32_t) + sizeof(double)) +
-                                 2 * sizeof(int32_t) + (size_t)s->nthreads * sizeof(int64_t));
+                                 2 * sizeof(int32_t) + (size_t)s->nthreads * sizeof(int64_t) + sizeof(double));
 }

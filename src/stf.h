@@ -172,6 +172,11 @@ int stf_fluid_history_steps(const stf_fluid *f);
  * particle mass, rest densities, history window), as YAML "key: value  # unit" lines.
  * Returns the length written (like snprintf). */
 int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len);
+/* Steps in which the springs saturated: some particle's spring gains dt^2 k (1 - L/h)
+ * summed to more than 1 and were scaled down so the step cannot overshoot (springs.c). The
+ * history stiffness beyond that is rigid within a step. 0 without springs. */
+long stf_fluid_saturated_steps(const stf_fluid *f);
+
 /* FNV-1a hash of positions and velocities, for determinism tests. */
 uint64_t stf_fluid_hash(const stf_fluid *f);
 
