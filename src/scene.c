@@ -913,7 +913,8 @@ static int parse_scene(loader *L)
 {
     static const char *const keys[] = {
         "name",      "duration", "dt",     "frame_rate", "bounce_min_rise", "fluid", "effects",
-        "container", "bodies",   "expect", NULL};
+        "container", "dt_control", "bodies", "expect", NULL};
+    static const char *const dt_controls[] = {"adaptive", "fixed", NULL};
     stf_scene *s = L->s;
     mapv top;
     if (open_map(L, fy_document_root(L->fyd), NULL, "", keys, &top)) return SCENE_BAD;
@@ -924,6 +925,7 @@ static int parse_scene(loader *L)
     if (need_num(L, &top, "duration", R_POS, &s->duration)) return SCENE_BAD;
     if (get_num(L, &top, "dt", R_POS, &s->dt) < 0) return SCENE_BAD;
     if (s->dt > 0.1) return fail_value(L, &top, "dt", "must be > 0 and <= 0.1");
+    if (get_choice(L, &top, "dt_control", dt_controls, &s->dt_fixed) < 0) return SCENE_BAD;
     if (get_num(L, &top, "frame_rate", R_POS, &s->frame_rate) < 0 ||
         get_num(L, &top, "bounce_min_rise", R_NONNEG, &s->bounce_min_rise) < 0)
         return SCENE_BAD;

@@ -55,6 +55,36 @@ run_case light "$pool" "--energy-margin 0.1" \
 # dt at the stability limit of this scene (2 ms passes, 3 ms blows up in the 9th step).
 run_case dt_limit "$pool" "--energy-margin 0.1" --set dt=0.002
 
+# 2x beyond the limit (dt = 4 ms): the adaptive control splits the steps (the run records
+# dt_min < dt); with dt_control: fixed the same run must blow up (exit 3), so the control is
+# what holds it.
+run_case dt_2x "$pool" "--energy-margin 0.1" --set dt=0.004
+if [ "$only" = "  " ] || [[ "$only" == *" dt_2x "* ]]; then
+    /usr/bin/python3 -c '
+import h5py, sys
+f = h5py.File("dt_2x.h5", "r")
+a = f.attrs
+print("   dt_2x: dt %g s, substeps %g over %g steps, dt_min %g s, dt_max %g s, control %s"
+      % (a["dt"], a["substeps"], a["steps"], a["dt_min"], a["dt_max"], a["dt_control"]))
+sys.exit(0 if a["dt_min"] < a["dt"] and a["substeps"] > a["steps"] else 1)' ||
+        { echo "cli_stability: FAIL: dt_2x: no substeps taken" >&2; fails=$((fails + 1)); }
+    # deterministic: the same run on 2 threads chooses the same substeps, bit for bit
+    "$stf" run "$pool" -o dt_2x_t2.h5 --quiet --threads 2 --set dt=0.004 2>/dev/null
+    /usr/bin/python3 -c '
+import h5py, numpy as np, sys
+a, b = h5py.File("dt_2x.h5", "r"), h5py.File("dt_2x_t2.h5", "r")
+ks = [k for k in a if k.startswith("Step#")]
+same = len(ks) == len([k for k in b if k.startswith("Step#")]) and all(
+    np.array_equal(a[k][d][:], b[k][d][:]) for k in ks for d in ("x", "y", "z", "vx", "vy", "vz"))
+same = same and np.array_equal(a["bodies/ball/position"][:], b["bodies/ball/position"][:])
+same = same and a.attrs["substeps"] == b.attrs["substeps"]
+sys.exit(0 if same else 1)' || { echo "cli_stability: FAIL: dt_2x: 1 and 2 threads differ" >&2; fails=$((fails + 1)); }
+    "$stf" run "$pool" -o fixed.h5 --quiet --threads 1 --set dt=0.004 --set dt_control=fixed \
+        2>fixed.err
+    rc=$?
+    [ $rc -eq 3 ] || { echo "cli_stability: FAIL: dt_2x fixed: exit $rc, want 3" >&2; fails=$((fails + 1)); }
+fi
+
 # Particles on top of each other: a second block of 32 particles on the same (unjittered)
 # lattice sites as the pool's. The doubled density at those sites is pressure energy that E
 # does not count; it is released in the first 10 ms (E rises by 61%), so E0 is the energy at

@@ -252,11 +252,13 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
     double wall = omp_get_wtime() - t0;
     if (!a->quiet && isatty(2)) fputc('\n', stderr);
     stf_h5_attr_long(h, "particles", stf_fluid_count(sim->fluid));
-    stf_h5_attr_long(h, "substeps", sim->steps);
+    stf_h5_attr_long(h, "steps", sim->steps);
+    stf_h5_attr_long(h, "substeps", sim->substeps);
     stf_h5_attr_long(h, "spring_saturated_substeps", stf_fluid_saturated_steps(sim->fluid));
     stf_h5_attr_double(h, "wall_seconds", wall);
-    stf_h5_attr_double(h, "dt_min", sc->dt);
-    stf_h5_attr_double(h, "dt_max", sc->dt);
+    stf_h5_attr_double(h, "dt_min", sim->dt_min > 0 ? sim->dt_min : sc->dt);
+    stf_h5_attr_double(h, "dt_max", sim->dt_max > 0 ? sim->dt_max : sc->dt);
+    stf_h5_attr_string(h, "dt_control", sc->dt_fixed ? "fixed" : "adaptive");
     if (status == 2) fprintf(stderr, "stf: writing %s failed: %s\n", out, stf_h5_last_error(h));
     stf_h5_flush_for_reading(h);
     if (stf_metrics_compute(out, m, err, sizeof err) == 0) {
