@@ -170,6 +170,10 @@ def main():
                                                                           o["density_max"]))
     print("frames %d, t_end %.4g s, worst particle excursion beyond walls+spacing %.3g m"
           % (len(steps), t_end, worst_out))
+    if "substeps" in A and "steps" in A:
+        print("steps %d, substeps %d (dt %g..%g s), spring-saturated substeps %d"
+              % (A["steps"], A["substeps"], A["dt_min"], A["dt_max"],
+                 A.get("spring_saturated_substeps", 0)))
     for msg in msgs:
         print("stability_check: FAIL: %s: %s" % (path, msg), file=sys.stderr)
     return 1 if msgs else 0
