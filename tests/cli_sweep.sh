@@ -5,13 +5,13 @@
 # own file (to the report's 9 digits) and, bit for bit, a plain `stf run` with the same --set's; a heavier ball ends lower (the varied
 # values reach the runs); the scene's expectations are held per run; a list file gives the same
 # rows as the grid; an interrupted sweep (a killed run, a SIGINT'd run, a missing file) resumes
-# and reruns only those; a different sweep into the same DIR and bad input exit 2 and change
+# and reruns only those, a signal stops a sweep (exit 130); a different sweep into the same DIR and bad input exit 2 and change
 # nothing; the plot is a PNG.
 #
 # usage: bash cli_sweep.sh STF_BINARY PROJECT_DIR   (run in the build's tests directory)
 set -u
 
-STF=${1:?usage: cli_sweep.sh STF_BINARY PROJECT_DIR}
+STF=$(realpath "${1:?usage: cli_sweep.sh STF_BINARY PROJECT_DIR}")
 PROJ=${2:?usage: cli_sweep.sh STF_BINARY PROJECT_DIR}
 SCENE="$PROJ/tests/scenes/small_drop.yaml"
 PY=/usr/bin/python3
@@ -131,6 +131,17 @@ touch -d '2000-01-01' resumed/run_0000.h5
 grep -q "6 runs, 3 to do (3 already done)" resumed.err || { fail "resume did not find 3 runs to do"; cat resumed.err >&2; }
 [ "$(stat -c %Y resumed/run_0000.h5)" = "$(date -d 2000-01-01 +%s)" ] || fail "resume rewrote a finished run"
 same_metrics serial/summary.csv resumed/summary.csv || fail "the resumed sweep's summary differs"
+
+# a signal to the sweep stops it: the running run saves what it has, exit 130, rows say so
+"$STF" sweep "$SCENE" --vary bodies.0.mass=0.02,0.05 --duration 5 --jobs 1 --threads 1 --quiet -o stopped 2>stopped.err &
+pid=$!
+sleep 1.5
+kill -TERM $pid
+wait $pid
+rc=$?
+[ $rc -eq 130 ] || { fail "a stopped sweep exited $rc, not 130"; cat stopped.err >&2; }
+grep -q '^0,0.02,0,interrupted,' stopped/summary.csv && grep -q '^1,0.05,0,missing,' stopped/summary.csv ||
+    { fail "a stopped sweep's summary does not say interrupted/missing"; cat stopped/summary.csv >&2; }
 
 # a different sweep into the same DIR: exit 2, nothing changed
 cp serial/summary.csv before.csv

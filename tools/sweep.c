@@ -444,7 +444,7 @@ static int run_local(const sweep_args *a, sweep_plan *p, const int *todo, int nt
     pid_t *pids = calloc((size_t)jobs, sizeof *pids);
     int *slot_run = calloc((size_t)jobs, sizeof *slot_run);
     if (!pids || !slot_run) abort();
-    int next = 0, running = 0, rc = 0;
+    int next = 0, running = 0, rc = 0, forwarded = 0;
     while (next < ntodo || running > 0) {
         while (running < jobs && next < ntodo && !stop_sweep && rc == 0) {
             int s = 0;
@@ -460,8 +460,12 @@ static int run_local(const sweep_args *a, sweep_plan *p, const int *todo, int nt
         int ws;
         pid_t got = waitpid(-1, &ws, 0);
         if (got < 0) {
-            if (errno == EINTR) continue;
-            break;
+            if (errno != EINTR) break;
+            /* a signal to the sweep alone (kill PID): pass it on, the runs save what they have */
+            for (int s = 0; s < jobs && stop_sweep && !forwarded; s++)
+                if (pids[s]) kill(pids[s], SIGINT);
+            forwarded = stop_sweep != 0;
+            continue;
         }
         for (int s = 0; s < jobs; s++)
             if (pids[s] == got) {
@@ -515,7 +519,7 @@ static void collect(const sweep_args *a, sweep_plan *p)
         snprintf(path, sizeof path, "%s/run_%04d.h5", a->dir, i);
         r->status = file_status(path);
         r->wall = NAN;
-        if (r->status < 0) continue;
+        if (!done(r->status)) continue; /* a partial run's metrics would mislead: rerun it */
         if (stf_metrics_compute(path, &r->m, err, sizeof err) != 0) {
             fprintf(stderr, "stf sweep: %s: %s\n", path, err);
             r->status = -1;
@@ -573,7 +577,11 @@ static int write_summary(const sweep_args *a, const sweep_plan *p)
         const sweep_run *r = &p->runs[i];
         fprintf(f, "%d", i);
         for (int k = 0; k < p->nkeys; k++) fputc(',', f), csv_field(f, r->val[k]);
-        const char *st = r->status == 0 ? "ok" : r->status == 3 ? "numerical_failure" : "missing";
+        char st[32];
+        if (r->status == 0 || r->status == 3 || r->status == 130 || r->status < 0)
+            snprintf(st, sizeof st, "%s", r->status == 0 ? "ok" : r->status == 3 ? "numerical_failure"
+                                          : r->status == 130 ? "interrupted" : "missing");
+        else snprintf(st, sizeof st, "exit_%d", r->status);
         fprintf(f, ",%d,%s,", r->repeat, st);
         if (r->have_metrics && r->failed >= 0) fprintf(f, "%s,%d", r->failed ? "fail" : "pass", r->failed);
         else fputc(',', f);
@@ -616,7 +624,7 @@ static int finish(const sweep_args *a, sweep_plan *p, int rc)
     int w = write_summary(a, p);
     int missing = 0, failed = 0;
     for (int i = 0; i < p->nruns; i++) {
-        missing += p->runs[i].status < 0;
+        missing += !done(p->runs[i].status);
         failed += p->runs[i].have_metrics && p->runs[i].failed != 0;
     }
     char err[512];
@@ -713,8 +721,12 @@ int cli_sweep(int argc, char **argv)
     }
     if (!a.quiet && size == 1)
         fprintf(stderr, "stf sweep: %d runs, %d to do (%d already done)\n", p.nruns, ntodo, p.nruns - ntodo);
-    signal(SIGINT, on_signal);
-    signal(SIGTERM, on_signal);
+    struct sigaction sa; /* no SA_RESTART: a signal wakes waitpid() */
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_signal;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
     if (size == 1) {
         int jobs = a.jobs ? a.jobs : procs;
         if (jobs > ntodo) jobs = ntodo > 0 ? ntodo : 1;
