@@ -32,7 +32,7 @@ static void usage(FILE *to)
           "            [--set KEY=VALUE]... [--unset KEY]...   (cost of accuracy, paper Table 1)\n"
           "  stf sweep SCENE (--vary KEY=V1,V2,...|--vary KEY=START:STOP:COUNT)... | --list FILE\n"
           "            -o DIR [--repeat N] [--jobs N] [--threads N] [--duration S] [--set ...]\n"
-          "            [--plot METRIC] [--x KEY] [--series KEY]   (DIR/summary.csv, summary.png;\n"
+          "            [--plot METRIC] [--x KEY] [--series KEY] [--png FILE]   (DIR/summary.csv, .png;\n"
           "            under mpirun the runs are spread over the ranks)\n"
           "exit codes: 0 ok, 1 expectation failed, 2 bad input, 3 numerical failure, "
           "130 interrupted\n",

@@ -44,10 +44,10 @@ static const char *USAGE =
     "usage: stf sweep SCENE (--vary KEY=V1,V2,...|--vary KEY=START:STOP:COUNT)... | --list FILE\n"
     "                 -o DIR [--repeat N] [--jobs N] [--threads N] [--duration S]\n"
     "                 [--set KEY=VALUE]... [--unset KEY]... [--plot METRIC] [--x KEY]\n"
-    "                 [--series KEY] [--quiet]";
+    "                 [--series KEY] [--png FILE.png] [--quiet]";
 
 typedef struct sweep_args {
-    const char *scene, *dir, *list, *plot_metric, *plot_x, *plot_series;
+    const char *scene, *dir, *list, *plot_metric, *plot_x, *plot_series, *png;
     char *vary[MAX_KEYS];
     int nvary;
     const char *fixed[2 * MAX_FIXED]; /* "--set", "K=V" / "--unset", "K" pairs */
@@ -105,9 +105,13 @@ static int parse_args(int argc, char **argv, sweep_args *a)
             a->duration = argv[i];
         } else if (!strcmp(s, "--plot") && more) a->plot_metric = argv[++i];
         else if (!strcmp(s, "--x") && more) a->plot_x = argv[++i];
+        else if (!strcmp(s, "--png") && more) a->png = argv[++i];
         else if (!strcmp(s, "--series") && more) a->plot_series = argv[++i];
         else if (!strcmp(s, "--quiet") || !strcmp(s, "-q")) a->quiet = 1;
-        else if (s[0] == '-') return bad("unknown or incomplete option", s);
+        else if (!strcmp(s, "-h") || !strcmp(s, "--help")) {
+            puts(USAGE);
+            return 1;
+        } else if (s[0] == '-') return bad("unknown or incomplete option", s);
         else if (!a->scene) a->scene = s;
         else return bad("unexpected argument", s);
     }
@@ -628,11 +632,13 @@ static int finish(const sweep_args *a, sweep_plan *p, int rc)
         failed += p->runs[i].have_metrics && p->runs[i].failed != 0;
     }
     char err[512];
-    int plotted = sweep_plot(a->dir, p, a->plot_metric, a->plot_x, a->plot_series, err, sizeof err);
+    char png[4096];
+    snprintf(png, sizeof png, "%s/summary.png", a->dir);
+    int plotted = sweep_plot(a->png ? a->png : png, p, a->plot_metric, a->plot_x, a->plot_series, err, sizeof err);
     if (plotted != 0) fprintf(stderr, "stf sweep: no plot: %s\n", err);
     if (!a->quiet)
-        fprintf(stderr, "stf sweep: %d runs, %d unfinished, %d failing expectations; %s/summary.csv%s\n",
-                p->nruns, missing, failed, a->dir, plotted == 0 ? ", summary.png" : "");
+        fprintf(stderr, "stf sweep: %d runs, %d unfinished, %d failing expectations; %s/summary.csv%s%s\n",
+                p->nruns, missing, failed, a->dir, plotted == 0 ? ", " : "", plotted == 0 ? (a->png ? a->png : png) : "");
     if (rc) return rc;
     if (w) return w;
     if (missing) return 2;
@@ -662,7 +668,8 @@ static int under_mpi(void)
 int cli_sweep(int argc, char **argv)
 {
     sweep_args a;
-    if (parse_args(argc, argv, &a) != 0) return 2;
+    int prc = parse_args(argc, argv, &a);
+    if (prc) return prc == 1 ? 0 : 2;
     sweep_plan p;
     int rc = build_plan(&a, &p);
     if (rc) {

@@ -32,12 +32,12 @@ typedef struct sweep_plan {
     sweep_run *runs;
 } sweep_plan;
 
-/* Draws DIR/summary.png: metric (an expectation key, default: the scene's first body's
+/* Draws the PNG file png: metric (a summary column: an expectation key or BODY.final_z, default: the scene's first body's
  * float_duration if it has bodies, else fluid.max_speed) against the numeric values of key x
  * (default: the first key), one line per value of key series (default: the second key, if
  * any); runs that agree on both are averaged (repeats, other keys). Returns 0, or -1 with a
  * reason in err. */
-int sweep_plot(const char *dir, const sweep_plan *p, const char *metric, const char *x,
+int sweep_plot(const char *png, const sweep_plan *p, const char *metric, const char *x,
                const char *series, char *err, size_t errlen);
 
 #endif

@@ -1,7 +1,7 @@
 /* sweep_plot.c - the chart of `stf sweep`: one metric against one varied key, one line per
  * value of a second key. A point whose runs all have a null metric (the event never
  * happened in the run, e.g. a ball that never sank has no float_duration) is an open marker
- * on the top edge, so "never" is not mistaken for "small". */
+ * in a "never" band above the axis, so "never" is not mistaken for a value. */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
 #include <stdio.h>
@@ -36,6 +36,7 @@ static void nice_range(double *lo, double *hi)
     }
     double pad = (*hi - *lo) * 0.05;
     double step = canvas_nice_step(*hi - *lo + 2 * pad, 5);
+    if (*lo == 0) pad = 0; /* an axis from zero stays there */
     *lo = floor((*lo - pad) / step) * step;
     *hi = ceil((*hi + pad) / step) * step;
 }
@@ -62,6 +63,22 @@ static double num(const sweep_run *r, int k)
     return *end || end == r->val[k] ? NAN : v;
 }
 
+/* A summary column's value: an expectation key, or BODY.final_x/_y/_z. */
+static int metric_value(const stf_metrics *m, const char *key, double *v)
+{
+    if (stf_metrics_get(m, key, v) == 0) return 0;
+    const char *dot = strrchr(key, '.');
+    const char *f = dot ? dot + 1 : key;
+    if (strcmp(f, "final_x") && strcmp(f, "final_y") && strcmp(f, "final_z")) return -1;
+    for (int b = 0; b < m->nbodies; b++)
+        if (!dot ? b == 0 : strlen(m->bodies[b].name) == (size_t)(dot - key) &&
+                                !strncmp(m->bodies[b].name, key, (size_t)(dot - key))) {
+            *v = m->bodies[b].final_position[f[6] - 'x'];
+            return 0;
+        }
+    return -1;
+}
+
 static void axes(canvas *c, const box *b, const char *xlabel, const char *ylabel)
 {
     double us = canvas_nice_step(b->u1 - b->u0, 5), vs = canvas_nice_step(b->v1 - b->v0, 6);
@@ -85,7 +102,7 @@ static void axes(canvas *c, const box *b, const char *xlabel, const char *ylabel
     canvas_line(c, b->x0, b->y0, b->x0, b->y1, BLACK, 1.5);
     canvas_line(c, b->x1, b->y0, b->x1, b->y1, BLACK, 1.5);
     canvas_text(c, (b->x0 + b->x1 - canvas_text_width(xlabel, TS)) / 2, b->y1 + 40, xlabel, BLACK, TS);
-    canvas_text(c, b->x0, b->y0 - 24, ylabel, BLACK, TS);
+    canvas_text(c, b->x0, 46, ylabel, BLACK, TS); /* under the title, above any "never" band */
 }
 
 static void marker(canvas *c, double x, double y, const float rgb[3], int open)
@@ -94,7 +111,7 @@ static void marker(canvas *c, double x, double y, const float rgb[3], int open)
     if (open) canvas_circle(c, x, y, 3, WHITE);
 }
 
-int sweep_plot(const char *dir, const sweep_plan *p, const char *metric, const char *xname,
+int sweep_plot(const char *png, const sweep_plan *p, const char *metric, const char *xname,
                const char *sname, char *err, size_t errlen)
 {
     if (p->nkeys == 0) return snprintf(err, errlen, "no varied keys"), -1;
@@ -109,7 +126,7 @@ int sweep_plot(const char *dir, const sweep_plan *p, const char *metric, const c
         metric = defmetric;
     }
     double probe;
-    if (stf_metrics_get(m0, metric, &probe) != 0)
+    if (metric_value(m0, metric, &probe) != 0)
         return snprintf(err, errlen, "--plot %s: no such metric (see the columns of summary.csv)", metric), -1;
     int kx = xname ? find_key(p, xname) : 0;
     if (kx < 0) return snprintf(err, errlen, "--x %s: not a varied key", xname), -1;
@@ -161,7 +178,7 @@ int sweep_plot(const char *dir, const sweep_plan *p, const char *metric, const c
         while (xs[ix] != x) ix++;
         while (strcmp(sl[is], s)) is++;
         has[is * nx + ix]++;
-        if (stf_metrics_get(&r->m, metric, &v) == 0 && isfinite(v)) {
+        if (metric_value(&r->m, metric, &v) == 0 && isfinite(v)) {
             mean[is * nx + ix] += v;
             nfin[is * nx + ix]++;
         }
@@ -174,11 +191,15 @@ int sweep_plot(const char *dir, const sweep_plan *p, const char *metric, const c
         } else nnull += has[j] > 0;
     }
     if (!(lo <= hi)) lo = 0, hi = 1;
+    if (lo > 0 && lo <= hi / 2) lo = 0; /* positive quantities from zero, unless bunched up */
+    if (lo > 0 && lo == hi) lo = 0;
 
     canvas *c = canvas_new(1000, 600);
     if (!c) abort();
     canvas_fill(c, WHITE);
-    box b = {110, 70, 730, 510, xs[0], xs[nx - 1], lo, hi};
+    /* nulls get a band of their own above the axis: "never" is not a value */
+    int band = nnull ? 44 : 0;
+    box b = {110, 70 + band, 730, 510, xs[0], xs[nx - 1], lo, hi};
     if (!(b.u1 > b.u0)) b.u0 -= 1, b.u1 += 1;
     double pad = (b.u1 - b.u0) * 0.04;
     b.u0 -= pad, b.u1 += pad;
@@ -187,7 +208,13 @@ int sweep_plot(const char *dir, const sweep_plan *p, const char *metric, const c
     snprintf(title, sizeof title, "%s vs %s", metric, p->keys[kx].key);
     canvas_text(c, b.x0, 14, title, BLACK, TS + 1);
     axes(c, &b, p->keys[kx].key, metric);
-    int ly = b.y0;
+    if (band) {
+        canvas_dashed_line(c, b.x0, b.y0 - band, b.x1, b.y0 - band, BLACK, 1, 6, 4);
+        canvas_line(c, b.x0, b.y0 - band, b.x0, b.y0, BLACK, 1.5);
+        canvas_line(c, b.x1, b.y0 - band, b.x1, b.y0, BLACK, 1.5);
+        canvas_text(c, b.x0 - 12 - canvas_text_width("never", TS), b.y0 - band / 2 - 7, "never", BLACK, TS);
+    }
+    int ly = b.y0 - band;
     if (ks >= 0) {
         canvas_text(c, b.x1 + 20, ly, p->keys[ks].key, BLACK, TS);
         ly += 26;
@@ -210,7 +237,7 @@ int sweep_plot(const char *dir, const sweep_plan *p, const char *metric, const c
             if (!has[j]) continue;
             double x = bx(&b, xs[ix]);
             if (nfin[j]) marker(c, x, by(&b, mean[j]), col, 0);
-            else marker(c, x, b.y0 + 8 + 3 * is, col, 1);
+            else marker(c, x + 4.0 * (is - (ns - 1) / 2.0), b.y0 - band / 2, col, 1);
         }
         if (ks >= 0) {
             canvas_line(c, b.x1 + 20, ly + 7, b.x1 + 50, ly + 7, col, 2.2);
@@ -222,13 +249,10 @@ int sweep_plot(const char *dir, const sweep_plan *p, const char *metric, const c
     if (nnull) {
         ly += 10;
         marker(c, b.x1 + 35, ly + 7, BLACK, 1);
-        canvas_text(c, b.x1 + 50, ly, "on top: null", BLACK, TS);
-        canvas_text(c, b.x1 + 50, ly + 20, "(never, in", BLACK, TS);
-        canvas_text(c, b.x1 + 50, ly + 40, "the run)", BLACK, TS);
+        canvas_text(c, b.x1 + 50, ly, "null: never", BLACK, TS);
+        canvas_text(c, b.x1 + 50, ly + 20, "in the run", BLACK, TS);
     }
-    char path[4096];
-    snprintf(path, sizeof path, "%s/summary.png", dir);
-    int rc = canvas_write_png(c, path, err, errlen);
+    int rc = canvas_write_png(c, png, err, errlen);
     canvas_free(c);
     free(xs), free(sv), free(sl), free(mean), free(has), free(nfin);
     return rc;
