@@ -123,7 +123,7 @@ pid=$!
 sleep 0.7
 kill -KILL $pid 2>/dev/null
 wait $pid 2>/dev/null
-timeout --preserve-status -s INT 0.7 "$STF" run "$SCENE" -o resumed/run_0003.h5 --duration 20 --threads 1 --quiet
+timeout --preserve-status -s INT 0.7 "$STF" run "$SCENE" -o resumed/run_0003.h5 --duration 20 --threads 1 --quiet 2>int.err
 [ $? -eq 130 ] || fail "an interrupted stf run did not exit 130"
 rm -f resumed/run_0005.h5 resumed/summary.csv
 touch -d '2000-01-01' resumed/run_0000.h5
