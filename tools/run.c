@@ -175,6 +175,19 @@ static void progress(const run_args *a, const stf_sim *sim, double end, double w
             100.0 * sim->time / end, wall);
 }
 
+int cli_expectation_holds(const stf_expectation *e, const stf_metrics *m, double *value)
+{
+    double v;
+    if (stf_metrics_get(m, e->key, &v) != 0) return -1;
+    *value = v;
+    if (isnan(v)) return 0; /* a null metric (never happened) holds no comparison */
+    if (!strcmp(e->op, "<")) return v < e->value;
+    if (!strcmp(e->op, "<=")) return v <= e->value;
+    if (!strcmp(e->op, ">")) return v > e->value;
+    if (!strcmp(e->op, ">=")) return v >= e->value;
+    return v == e->value;
+}
+
 /* Holds the scene's expect block against the metrics; prints one line each. */
 static int hold_expectations(const stf_scene *sc, const stf_metrics *m)
 {
@@ -182,18 +195,11 @@ static int hold_expectations(const stf_scene *sc, const stf_metrics *m)
     for (int k = 0; k < sc->nexpect; k++) {
         const stf_expectation *e = &sc->expect[k];
         double v;
-        int ok = 0;
-        if (stf_metrics_get(m, e->key, &v) != 0) {
+        int ok = cli_expectation_holds(e, m, &v);
+        if (ok < 0) {
             printf("FAIL  %-28s  no such metric in this run\n", e->key);
             failed++;
             continue;
-        }
-        if (!isnan(v)) {
-            if (!strcmp(e->op, "<")) ok = v < e->value;
-            else if (!strcmp(e->op, "<=")) ok = v <= e->value;
-            else if (!strcmp(e->op, ">")) ok = v > e->value;
-            else if (!strcmp(e->op, ">=")) ok = v >= e->value;
-            else ok = v == e->value;
         }
         printf("%s  %-28s  measured %-12.6g expected %s %g\n", ok ? "pass" : "FAIL", e->key, v,
                e->op, e->value);
@@ -304,6 +310,9 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
         if (json) stf_h5_write_metrics_json(h, json);
         free(json);
     }
+    /* how the run ended (0 done, 3 numerical failure, 130 interrupted, 2 write error): a
+       file without it was killed; `stf sweep` resumes every run not ended by 0 or 3 */
+    stf_h5_attr_long(h, "exit_status", status);
     if (stf_h5_close(h, err, sizeof err) != 0) {
         fprintf(stderr, "stf: %s\n", err);
         if (status == 0) status = 2;
