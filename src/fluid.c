@@ -489,7 +489,7 @@ int stf_fluid_step(stf_fluid *f, double dt)
         }
         if (grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
     });
-    if (has(f, STF_EFFECT_HISTORY)) {
+    if (has(f, STF_EFFECT_HISTORY) && f->def.k_hist > 0) { /* k_hist = 0: D is never read */
         TIMED(STAGE_HISTORY, {
             if (history_push(&f->hist, f->v, n) != 0) goto oom;
             history_derivative(&f->hist, n);
