@@ -15,17 +15,17 @@ here=$(cd "$(dirname "$0")" && pwd)
 STF=${1:-$here/../../build/tools/stf}
 DIR=${2:-bowling_float}
 shift $(( $# < 2 ? $# : 2 ))
-common=("$here/../bowling_ball.yaml" --set fluid.spacing=0.03 --duration 2)
+common=("$here/../bowling_ball.yaml" --set fluid.spacing=0.03 --duration 5)
 mkdir -p "$DIR"
 st=0
 "$STF" sweep "${common[@]}" -o "$DIR/grid" \
-    --vary effects.history.k_hist=0,50000,100000,200000 --vary effects.history.d=50,150,250 \
+    --vary effects.history.k_hist=0,75000,150000,300000 --vary effects.history.d=50,150,250 \
     --plot ball.float_duration --png "$DIR/grid.png" "$@" || st=$?
 # the same sweep again: every run is done, so this only draws another metric
 "$STF" sweep "${common[@]}" -o "$DIR/grid" \
-    --vary effects.history.k_hist=0,50000,100000,200000 --vary effects.history.d=50,150,250 \
+    --vary effects.history.k_hist=0,75000,150000,300000 --vary effects.history.d=50,150,250 \
     --plot ball.final_z --png "$DIR/grid_final_z.png" "$@" || st=$?
 "$STF" sweep "${common[@]}" -o "$DIR/onset" \
-    --vary effects.history.k_hist=0:50000:6 --set effects.history.d=50 \
+    --vary effects.history.k_hist=0:75000:6 --set effects.history.d=50 \
     --plot ball.float_duration --png "$DIR/onset.png" "$@" || st=$?
 exit $st
