@@ -71,7 +71,8 @@ typedef struct cy_state {
     double *nu;          /* n: kinematic viscosity of the step, m^2/s */
     double *vel;         /* 3n: v** */
     double *b, *dv, *r, *p, *Ap; /* 3n each: viscosity solve */
-    double *lap;         /* cap * stride: m (r.grad W)/(r^2 + 0.01 h^2) per pair, kg/m^5 */
+    float *lap;          /* cap * stride: m (r.grad W)/(r^2 + 0.01 h^2) per pair, kg/m^5 (float:
+                            the pair arrays are read every pass, so their size is the cost) */
     double wall_lap[WALL_BINS + 1]; /* the same summed over a wall's lattice, with Morris'
                                        mirror velocity (see tables), by distance */
     /* The quarter-space behind two perpendicular faces of a container, by the distances to
@@ -82,7 +83,7 @@ typedef struct cy_state {
     double quad_lap[WALL_BINS + 1][WALL_BINS + 1];
     double *lw;          /* n: sum over walls of wall_lap */
     double *lwv;         /* 3n: sum over walls of wall_lap * v_wall */
-    double *grad;        /* 3 * cap * stride: grad W_ij of each neighbour pair, 1/m^4 */
+    float *grad;         /* 3 * cap * stride: grad W_ij of each neighbour pair, 1/m^4 (float) */
     size_t grad_cap;
     char *hit;
     int warm_n;          /* particles ktot holds the last step's totals of (0: none) */
@@ -295,7 +296,12 @@ static int reserve(stf_fluid *f, int n)
     cy_state *c = f->cy;
     size_t pairs = (size_t)n * (size_t)f->grid.stride * 3;
     if (pairs > c->grad_cap) {
-        if (grow(&c->grad, pairs) || grow(&c->lap, pairs / 3)) return -1;
+        float *g = realloc(c->grad, pairs * sizeof *g);
+        if (!g) return -1;
+        c->grad = g;
+        float *l = realloc(c->lap, pairs / 3 * sizeof *l);
+        if (!l) return -1;
+        c->lap = l;
         c->grad_cap = pairs;
     }
     c->stride = f->grid.stride;
@@ -414,15 +420,15 @@ static void density_one(stf_fluid *f, int i)
     double h = f->h, m = f->mass, rho = c->rho[i] + m * kernel_w(0, h);
     double sum[3] = {c->gw[3 * i], c->gw[3 * i + 1], c->gw[3 * i + 2]}, sq = 0;
     const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
-    double *gr = c->grad + (size_t)i * c->stride * 3, *lp = c->lap + (size_t)i * c->stride;
+    float *gr = c->grad + (size_t)i * c->stride * 3, *lp = c->lap + (size_t)i * c->stride;
     for (int k = 0; k < f->grid.count[i]; k++) {
         double r[3];
         double len = pair_vec(f, i, nb[k], r);
         rho += m * kernel_w(len, h);
         double s = len > 1e-12 * h ? kernel_dw(len, h) / len : 0;
-        lp[k] = m * s * len * len / (len * len + 0.01 * h * h);
+        lp[k] = (float)(m * s * len * len / (len * len + 0.01 * h * h));
         for (int a = 0; a < 3; a++) {
-            gr[3 * k + a] = s * r[a];
+            gr[3 * k + a] = (float)(s * r[a]);
             sum[a] += m * s * r[a];
         }
         sq += m * m * s * s * len * len;
@@ -439,7 +445,8 @@ static double predict_one(const stf_fluid *f, const double *v, int i, double dt)
     const cy_state *c = f->cy;
     double div = 0, m = f->mass;
     const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
-    const double *gr = c->grad + (size_t)i * c->stride * 3, *vi = v + 3 * i;
+    const float *gr = c->grad + (size_t)i * c->stride * 3;
+    const double *vi = v + 3 * i;
     for (int k = 0; k < f->grid.count[i]; k++) {
         const double *vj = v + 3 * nb[k];
         div += m * ((vi[0] - vj[0]) * gr[3 * k] + (vi[1] - vj[1]) * gr[3 * k + 1] +
@@ -456,7 +463,7 @@ static void pressure_dv_one(const stf_fluid *f, int i, double dt, double *out)
     const cy_state *c = f->cy;
     double m = f->mass, ki = c->kappa[i] / c->rho[i], d[3] = {0, 0, 0};
     const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
-    const double *gr = c->grad + (size_t)i * c->stride * 3;
+    const float *gr = c->grad + (size_t)i * c->stride * 3;
     for (int k = 0; k < f->grid.count[i]; k++) {
         int j = nb[k];
         double w = m * (ki + c->kappa[j] / c->rho[j]);
@@ -543,7 +550,8 @@ static void strain_one(const stf_fluid *f, const double *u, int i, int with_wall
     const cy_state *c = f->cy;
     double L[9] = {0}, m = f->mass;
     const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
-    const double *gr = c->grad + (size_t)i * c->stride * 3, *ui = u + 3 * i;
+    const float *gr = c->grad + (size_t)i * c->stride * 3;
+    const double *ui = u + 3 * i;
     for (int k = 0; k < f->grid.count[i]; k++) {
         const double *uj = u + 3 * nb[k];
         for (int a = 0; a < 3; a++) {
@@ -584,7 +592,8 @@ static void viscous_one(const stf_fluid *f, const double *u, int i, int with_wal
     const cy_state *c = f->cy;
     double a[3] = {0, 0, 0}, mi = c->rho[i] * c->nu[i];
     const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
-    const double *lp = c->lap + (size_t)i * c->stride, *ui = u + 3 * i;
+    const float *lp = c->lap + (size_t)i * c->stride;
+    const double *ui = u + 3 * i;
     for (int k = 0; k < f->grid.count[i]; k++) {
         int j = nb[k];
         const double *uj = u + 3 * j;
@@ -618,6 +627,14 @@ static void viscosity_field(stf_fluid *f, const double *v)
 {
     cy_state *c = f->cy;
     int n = f->n;
+    const stf_cy_def *cd = &f->def.cy;
+    if (cd->n == 1 || cd->K == 0 || cd->mu0 == cd->mu_inf) { /* Eq. 3 is constant: Newtonian */
+        double nu = stf_cy_viscosity(cd, 0);
+#pragma omp parallel for schedule(static)
+        for (int i = 0; i < n; i++) c->nu[i] = nu;
+        c->stats.min_viscosity = c->stats.max_viscosity = nu;
+        return;
+    }
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) {
         strain_one(f, v, i, 1, c->D);
@@ -730,15 +747,18 @@ static int cy_substep(stf_fluid *f, double dt)
     cy_state *c = f->cy;
     int n = f->n;
     double t0 = omp_get_wtime();
-    if (grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
-    if (f->steps % f->reorder_interval == 0) {
+    /* Particles are re-sorted by cell (memory locality) when the neighbour candidates are
+       rebuilt anyway, at most every reorder_interval steps, as in stf_fluid_step. */
+    if (grid_due(&f->grid, f->x, n, f->h) && f->steps >= f->next_reorder) {
+        if (grid_sort(&f->grid, f->x, n, f->h) != 0) goto oom;
         if (c->warm_n == n) { /* the warm start's pressures follow their particles */
             for (int i = 0; i < n; i++) c->kappa[i] = c->ktot[f->grid.order[i]];
             memcpy(c->ktot, c->kappa, (size_t)n * sizeof *c->ktot);
         }
-        if (fluid_permute(f, f->grid.order) != 0 || grid_build(&f->grid, f->x, n, f->h) != 0)
-            goto oom;
+        if (fluid_permute(f, f->grid.order) != 0) goto oom;
+        f->next_reorder = f->steps + f->reorder_interval;
     }
+    if (grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
     if (reserve(f, n) != 0) goto oom;
     f->stage_seconds[STAGE_GRID] += omp_get_wtime() - t0;
     t0 = omp_get_wtime();

@@ -806,6 +806,7 @@ static int dam_row(const bench_args *a, double duration, int threads)
     long steps = lround(duration / sc->dt), substeps = 0, iters = 0;
     double err_sum = 0, err_max = 0, dt_min = sc->dt, dt_max = 0, cfl = 0;
     int rc = 0;
+    long rebuilds0 = sim->fluid->grid.rebuilds;
     double t0 = omp_get_wtime(), c0 = cpu_seconds();
     for (long s = 0; s < steps && rc == 0; s++) {
         rc = stf_sim_step(sim);
@@ -826,11 +827,12 @@ static int dam_row(const bench_args *a, double duration, int threads)
     } else {
         struct rusage ru;
         getrusage(RUSAGE_SELF, &ru);
-        printf("%7d %8d %10.2f %10.2f %9.1f %8.2f %8.2f %9.3f %9.3f %9.2e %9.2e %7.3f %8.1f\n",
+        printf("%7d %8d %10.2f %10.2f %9.1f %8.2f %8.2f %9.3f %9.3f %9.2e %9.2e %7.3f %8.1f %8.2f\n",
                threads, stf_fluid_count(sim->fluid), wall / T, cpu / T, substeps / T,
                1e3 * wall / (double)substeps, (double)iters / (double)substeps,
                100 * err_sum / (double)substeps, 100 * err_max, dt_min, dt_max, cfl,
-               ru.ru_maxrss / 1024.0);
+               ru.ru_maxrss / 1024.0,
+               (double)(sim->fluid->grid.rebuilds - rebuilds0) / (double)substeps);
         fflush(stdout);
     }
     stf_sim_destroy(sim);
@@ -843,9 +845,9 @@ static int bench_dam(const bench_args *a)
     double duration = a->duration > 0 ? a->duration : 0.2;
     printf("# stf bench dam %s: %.3g simulated s from rest (--duration)\n", a->scene, duration);
     print_load();
-    printf("%7s %8s %10s %10s %9s %8s %8s %9s %9s %9s %9s %7s %8s\n", "threads", "n",
+    printf("%7s %8s %10s %10s %9s %8s %8s %9s %9s %9s %9s %7s %8s %8s\n", "threads", "n",
            "wall s/s", "cpu s/s", "steps/s", "ms/step", "p.iter", "err mean%", "err max%",
-           "dt min s", "dt max s", "cfl", "maxrss MB");
+           "dt min s", "dt max s", "cfl", "maxrss MB", "rebuilds");
     int counts[2] = {1, 2}, nc = 2;
     if (a->threads) counts[0] = a->threads, nc = 1;
     for (int k = 0; k < nc; k++) {
@@ -856,7 +858,8 @@ static int bench_dam(const bench_args *a)
     printf("# wall s/s: wall seconds per simulated second; steps/s: solver substeps per simulated "
            "second; p.iter: pressure iterations per substep; err: mean compression after the "
            "projection (mean over substeps, and the largest); cfl: largest v_max dt / h; maxrss: "
-           "peak resident memory of this process so far (getrusage)\n");
+           "peak resident memory of this process so far (getrusage); rebuilds: neighbour "
+           "candidate rebuilds per substep\n");
     return 0;
 }
 
