@@ -157,6 +157,8 @@ int cy_check_def(const stf_fluid_def *d, char *err, size_t errlen)
         FAIL("warm_start: must be in [0,1] (got %g)", c->warm_start);
     if (!(c->relaxation >= 0 && c->relaxation <= 1))
         FAIL("relaxation: must be in (0,1], or 0 for 1 (got %g)", c->relaxation);
+    if (!(c->dt_max >= 0 && isfinite(c->dt_max))) FAIL("dt_max: must be >= 0 s (got %g)", c->dt_max);
+    if (c->dt_max > 0 && !(c->cfl > 0)) FAIL("dt_max: only with cfl");
     if (!(c->cfl >= 0 && c->cfl < 1)) FAIL("cfl: must be in (0,1), or 0 for off (got %g)", c->cfl);
     double h = d->h > 0 ? d->h : 2 * d->spacing;
     for (int a = 0; a < 3; a++) {
@@ -820,7 +822,8 @@ static double max_speed(const stf_fluid *f)
 
 /* One coupled step of length dt: a single substep, or with cfl > 0 substeps of equal length
  * within dt whose count is set, at each substep's start, by the CFL condition
- * dt_sub <= cfl h / v_max on the remaining time (so the last one is not a sliver). The
+ * dt_sub <= min(dt_max, cfl h / v_max) on the remaining time (so the last one is not a
+ * sliver). The
  * colliders' impulses add up over the substeps (they were cleared by stf_fluid_step). */
 int cy_step(stf_fluid *f, double dt)
 {
@@ -835,9 +838,10 @@ int cy_step(stf_fluid *f, double dt)
     st->density_error_sum = st->density_error_max = 0;
     while (left > 1e-9 * dt) {
         double sub = left, vmax = max_speed(f);
-        if (cfl > 0 && vmax * left > cfl * f->h) {
-            double k = ceil(vmax * left / (cfl * f->h));
-            sub = left / k;
+        if (cfl > 0) {
+            double most = f->def.cy.dt_max > 0 ? f->def.cy.dt_max : left;
+            if (vmax * most > cfl * f->h) most = cfl * f->h / vmax;
+            if (most < left) sub = left / ceil(left / most * (1 - 1e-12));
         }
         f->dt_now = sub;
         if (cy_substep(f, sub) != 0) return -1;
@@ -882,11 +886,11 @@ int cy_describe(const stf_fluid *f, char *buf, size_t len)
                     "K: %.9g  # s\nalpha: %.9g\nn: %.9g\neta: %.9g\n"
                     "min_pressure_iterations: %d\nmax_pressure_iterations: %d\n"
                     "viscosity_solver: %s\ncg_tolerance: %.9g\nmax_cg_iterations: %d\n"
-                    "cfl: %.9g\nwarm_start: %.9g\nrelaxation: %.9g\n"
+                    "cfl: %.9g\ndt_max: %.9g  # s\nwarm_start: %.9g\nrelaxation: %.9g\n"
                     "rest_density_cy: %.9g  # kg/m^3, kernel sum of the lattice\n",
                     c->mu0, c->mu_inf, c->K, c->alpha, c->n, c->eta, c->min_pressure_iterations,
                     c->max_pressure_iterations,
                     c->viscosity_solver == STF_VISCOSITY_EXPLICIT ? "explicit" : "implicit",
-                    c->cg_tolerance, c->max_cg_iterations, c->cfl, c->warm_start,
+                    c->cg_tolerance, c->max_cg_iterations, c->cfl, c->dt_max, c->warm_start,
                     c->relaxation > 0 ? c->relaxation : 1.0, f->cy ? f->cy->rho0 : 0.0);
 }

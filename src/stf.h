@@ -74,6 +74,9 @@ typedef struct stf_cy_def {
     double cfl;            /* 0: one step of the given dt; in (0,1): CFL-adaptive substeps of
                               length dt_sub = min(dt, cfl h / v_max), v_max the largest particle
                               speed at the substep's start, dimensionless (Courant number) */
+    double dt_max;         /* s, >= 0: with cfl, the longest substep (0: the step's dt); a
+                              coupled step longer than the CFL substep then splits into
+                              nearly equal substeps instead of, e.g., two halves */
     double warm_start;     /* [0,1]: the pressure projection starts from this fraction of the
                               last step's pressure (0: from zero, the paper's); the iterations
                               then only add pressure, dimensionless */
