@@ -844,6 +844,10 @@ int cy_step(stf_fluid *f, double dt)
             if (most < left) sub = left / ceil(left / most * (1 - 1e-12));
         }
         f->dt_now = sub;
+        /* Verlet skin: the default (0.25 h) when the lists can last two substeps or more;
+           else they are rebuilt every substep anyway, and a thin skin (0.02 h) halves the
+           candidates to search and filter */
+        f->grid.skin = 4 * vmax * sub > 0.25 * f->h ? 0.02 : 0;
         if (cy_substep(f, sub) != 0) return -1;
         st->substeps++;
         st->dt_min = sub < st->dt_min ? sub : st->dt_min;
