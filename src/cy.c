@@ -37,15 +37,18 @@
  *   so I - dt (viscous operator) is symmetric positive definite and CG applies. For the
  *   plane shear flows of the tests it is exact: div(mu grad v) = div(mu D) there.
  * - The projection is Jacobi with the full k_i of Eq. 21 (no relaxation), from zero
- *   pressure each step, as Algorithm 1.
+ *   pressure each step, as Algorithm 1, unless the scene asks for relaxation and warm_start
+ *   (see pressure_project); cfl splits a step into CFL-limited substeps (cy_step).
  * - Walls (any collider: container, ODE bodies) are a half-space of lattice particles at
  *   rest density that move with the solid (tabulated by distance, as the Clavet model's
  *   mirror particles in pressure.c): they add to density and S_i, take part in the
  *   projection with the particle's own k_i, in the strain rate with the solid's velocity, and
  *   in the viscous force with Morris' mirror velocity (zero relative velocity on the surface:
  *   no slip). Every velocity change they cause is an impulse the collider receives back,
- *   which is how ODE bodies feel buoyancy and drag. Where two walls meet, both count
- *   (the corner's lattice twice).
+ *   which is how ODE bodies feel buoyancy and drag. Where two colliders meet, both count
+ *   (the corner's lattice twice); a container's own faces count one by one, with the
+ *   quarter-space behind each edge subtracted once (the triple corner's octant is then
+ *   missing once: at least 0.87 h from a particle, a small term).
  */
 #include "cy.h"
 
