@@ -19,14 +19,18 @@ typedef struct stf_sim {
     double *freq;           /* current vibration frequency, Hz */
     unsigned *rng;
     int removed;            /* particles removed at set-up because they overlapped bodies */
-    long steps;
-    double time;
+    long steps;             /* steps of the scene's dt taken */
+    double time;            /* s, steps * dt */
+    long substeps;          /* substeps taken (>= steps; more when adaptive control split steps) */
+    double dt_min, dt_max;  /* s, shortest and longest substep taken (0 before the first) */
 } stf_sim;
 
 /* Builds the simulation. Returns 0; 2 with a message for a scene that cannot be built. */
 int stf_sim_create(const stf_scene *scene, stf_sim **out, char *err, size_t errlen);
 void stf_sim_destroy(stf_sim *s);
-/* One substep of the scene's dt. Returns 0, or -1 on a numerical failure. */
+/* One step of the scene's dt: one substep, or (adaptive control, the default) m >= 1 equal
+ * substeps of dt/m chosen from the velocity (CFL) and the effective stiffness, see
+ * stf_sim.c. Returns 0, or -1 on a numerical failure. */
 int stf_sim_step(stf_sim *s);
 /* A body's state: position (m), quaternion (w,x,y,z), velocity (m/s), angular velocity
  * (rad/s), fluid force of the last step (N). */

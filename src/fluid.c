@@ -489,7 +489,7 @@ int stf_fluid_step(stf_fluid *f, double dt)
         }
         if (grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
     });
-    if (has(f, STF_EFFECT_HISTORY)) {
+    if (has(f, STF_EFFECT_HISTORY) && f->def.k_hist > 0) { /* k_hist = 0: D is never read */
         TIMED(STAGE_HISTORY, {
             if (history_push(&f->hist, f->v, n) != 0) goto oom;
             history_derivative(&f->hist, n);
@@ -555,6 +555,27 @@ void stf_fluid_get_history_stiffness(const stf_fluid *f, float *k)
 long stf_fluid_spring_count(const stf_fluid *f)
 {
     return f->springs.n_alloc ? springs_total(&f->springs, f->n) : 0;
+}
+
+double stf_fluid_max_speed(const stf_fluid *f)
+{
+    double m2 = 0;
+    int n = f->n;
+#pragma omp parallel for schedule(static) reduction(max : m2)
+    for (int i = 0; i < n; i++) {
+        const double *v = f->v + 3 * i;
+        double s2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+        if (s2 > m2) m2 = s2;
+    }
+    return sqrt(m2);
+}
+
+double stf_fluid_spring_gain(const stf_fluid *f) { return f->springs.n_alloc ? f->springs.max_gain : 0; }
+double stf_fluid_last_dt(const stf_fluid *f) { return f->dt_now; }
+
+long stf_fluid_saturated_steps(const stf_fluid *f)
+{
+    return f->springs.n_alloc ? f->springs.saturated_steps : 0;
 }
 
 int stf_fluid_history_steps(const stf_fluid *f)

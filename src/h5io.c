@@ -80,6 +80,66 @@ struct stf_h5 {
 
 const char *stf_h5_last_error(const stf_h5 *h) { return h ? h->err : "no file"; }
 
+/* File access properties that keep HDF5 from writing metadata between our flushes.
+ *
+ * A kill -9 must leave a readable file. HDF5's metadata cache evicts dirty entries (a
+ * group's symbol table, a B-tree node) whenever it is full, so without this the file on disk
+ * could name objects beyond the end-of-allocation the superblock records; h5py then fails
+ * with "addr overflow" (3 of 80 kills during a frame every step, measured). With eviction
+ * off, metadata reaches the disk only in H5Fflush, which we call after each complete frame
+ * or body row; the cache is emptied by reopening the file when it grows (flush_and_bound). */
+static hid_t no_eviction_fapl(void)
+{
+    hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
+    H5AC_cache_config_t mdc;
+    memset(&mdc, 0, sizeof mdc);
+    mdc.version = H5AC__CURR_CACHE_CONFIG_VERSION;
+    if (fapl < 0 || H5Pget_mdc_config(fapl, &mdc) < 0) goto fail;
+    mdc.evictions_enabled = 0;
+    mdc.incr_mode = H5C_incr__off;
+    mdc.flash_incr_mode = H5C_flash_incr__off;
+    mdc.decr_mode = H5C_decr__off;
+    if (H5Pset_mdc_config(fapl, &mdc) < 0) goto fail;
+    return fapl;
+fail:
+    close_id(fapl);
+    return -1;
+}
+
+enum { MDC_REOPEN_BYTES = 2 << 20 }; /* metadata kept in memory before the file is reopened */
+
+/* Flushes the file; then, when the cache holds more than MDC_REOPEN_BYTES (it never evicts,
+ * see no_eviction_fapl), closes and reopens the file to empty it. Returns 0 or -1. */
+static int flush_and_bound(stf_h5 *h)
+{
+    if (H5Fflush(h->file, H5F_SCOPE_GLOBAL) < 0) return -1;
+    size_t max_size = 0, min_clean = 0, cur_size = 0;
+    int entries = 0;
+    if (H5Fget_mdc_size(h->file, &max_size, &min_clean, &cur_size, &entries) < 0) return -1;
+    if (cur_size <= MDC_REOPEN_BYTES) return 0;
+    hid_t fapl = no_eviction_fapl();
+    H5Fclose(h->file);
+    H5garbage_collect(); /* HDF5 keeps freed cache entries on its free lists otherwise */
+    h->file = fapl < 0 ? -1 : H5Fopen(h->path, H5F_ACC_RDWR, fapl);
+    close_id(fapl);
+    return h->file < 0 ? -1 : 0;
+}
+
+int stf_h5_flush_for_reading(stf_h5 *h)
+{
+    if (!h || H5Fflush(h->file, H5F_SCOPE_GLOBAL) < 0) return -1;
+    hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
+    H5AC_cache_config_t mdc;
+    memset(&mdc, 0, sizeof mdc);
+    mdc.version = H5AC__CURR_CACHE_CONFIG_VERSION;
+    int rc = fapl >= 0 && H5Pget_mdc_config(fapl, &mdc) >= 0 && /* the defaults */
+                     H5Fset_mdc_config(h->file, &mdc) >= 0
+                 ? 0 : -1;
+    close_id(fapl);
+    if (rc) snprintf(h->err, sizeof h->err, "cannot reset the metadata cache");
+    return rc;
+}
+
 int stf_h5_create(const char *path, stf_h5 **out, char *err, size_t errlen)
 {
     *out = NULL;
@@ -101,7 +161,9 @@ int stf_h5_create(const char *path, stf_h5 **out, char *err, size_t errlen)
     fclose(probe);
     /* Default (earliest) format: no superblock status flags, so a file left by a killed
      * writer opens without h5clear. */
-    h->file = H5Fcreate(path, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    hid_t fapl = no_eviction_fapl();
+    h->file = fapl < 0 ? -1 : H5Fcreate(path, H5F_ACC_TRUNC, H5P_DEFAULT, fapl);
+    close_id(fapl);
     if (h->file < 0) {
         fmt_err(err, errlen, "%s: cannot create HDF5 file", path);
         free(h->path);
@@ -251,13 +313,21 @@ int stf_h5_write_frame(stf_h5 *h, double t, int n, const double *xyz, const doub
     }
     char gname[32];
     snprintf(gname, sizeof gname, FRAME_PREFIX "%d", h->nframes);
-    hid_t g = H5Gcreate2(h->file, gname, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-    /* TimeValue goes last: the reader treats a group without it as incomplete. */
+    /* The group is built unnamed and linked into / last, so the root's symbol table
+     * changes only once the frame is complete (a killed run leaves no half frame under a
+     * name). TimeValue goes last too: the reader treats a group without it as incomplete. */
+    hid_t g = H5Gcreate_anon(h->file, H5P_DEFAULT, H5P_DEFAULT);
+    /* Two flushes: HDF5 writes the superblock (and so the end of allocation it records)
+     * after the objects, so a kill inside a flush can leave on disk an object that points
+     * past that end. The first flush writes the new, still unreachable frame and the new
+     * end; only the second writes the (small) change that links it. */
     int rc = (g >= 0 && frame_datasets(g, n, xyz, v, khist, id) == 0 &&
-              put_attr(g, "TimeValue", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, &t) == 0)
+              put_attr(g, "TimeValue", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, &t) == 0 &&
+              H5Fflush(h->file, H5F_SCOPE_GLOBAL) >= 0 &&
+              H5Olink(g, h->file, gname, H5P_DEFAULT, H5P_DEFAULT) >= 0)
                  ? 0 : -1;
     close_id(g);
-    if (rc == 0 && H5Fflush(h->file, H5F_SCOPE_GLOBAL) < 0) rc = -1;
+    if (rc == 0 && flush_and_bound(h) < 0) rc = -1;
     if (rc == 0) rc = remember_frame(h, t, n, khist != NULL, id != NULL);
     if (rc != 0) snprintf(h->err, sizeof h->err, "cannot write frame %s", gname);
     return rc;
@@ -358,7 +428,7 @@ int stf_h5_body_append(stf_h5 *h, const char *name, double t, const double pos[3
     int rc = body >= 0 ? body_rows(body, created, rows) : -1;
     close_id(body);
     close_id(bodies);
-    if (rc == 0 && H5Fflush(h->file, H5F_SCOPE_GLOBAL) < 0) rc = -1;
+    if (rc == 0 && flush_and_bound(h) < 0) rc = -1;
     if (rc != 0) snprintf(h->err, sizeof h->err, "cannot append to /bodies/%s", name);
     return rc;
 }
@@ -579,7 +649,25 @@ static long frame_step(const char *name)
     return (*end || errno) ? -1 : n;
 }
 
-/* Number of elements of a 1-D dataset, or -1 (absent, wrong rank, too large). */
+/* 1 if type t (closed here) is a standard IEEE float or integer. A damaged file can
+ * declare, say, a 260-byte float, and HDF5 1.10's conversion of that to double writes out
+ * of bounds: such data is refused before it is read. */
+static int standard_number_type(hid_t t)
+{
+    if (t < 0) return 0;
+    const hid_t ok[] = {H5T_IEEE_F32LE, H5T_IEEE_F64LE, H5T_IEEE_F32BE, H5T_IEEE_F64BE,
+                        H5T_STD_I8LE,   H5T_STD_I16LE,  H5T_STD_I32LE,  H5T_STD_I64LE,
+                        H5T_STD_U8LE,   H5T_STD_U16LE,  H5T_STD_U32LE,  H5T_STD_U64LE,
+                        H5T_STD_I32BE,  H5T_STD_I64BE,  H5T_STD_U32BE,  H5T_STD_U64BE};
+    int good = 0;
+    for (size_t i = 0; i < sizeof ok / sizeof ok[0] && !good; i++)
+        good = H5Tequal(t, ok[i]) > 0;
+    H5Tclose(t);
+    return good;
+}
+
+/* Number of elements of a 1-D dataset, or -1 (absent, wrong rank, too large, not a
+ * standard number type). */
 static long dataset_len_1d(hid_t g, const char *name)
 {
     if (H5Lexists(g, name, H5P_DEFAULT) <= 0) return -1;
@@ -587,7 +675,7 @@ static long dataset_len_1d(hid_t g, const char *name)
     hid_t s = d < 0 ? -1 : H5Dget_space(d);
     hsize_t dim = 0;
     long len = -1;
-    if (s >= 0 && H5Sget_simple_extent_ndims(s) == 1 &&
+    if (s >= 0 && standard_number_type(H5Dget_type(d)) && H5Sget_simple_extent_ndims(s) == 1 &&
         H5Sget_simple_extent_dims(s, &dim, NULL) == 1 && dim <= 0x7fffffff)
         len = (long)dim;
     close_id(s);
@@ -601,7 +689,7 @@ static int read_attr_double(hid_t obj, const char *name, double *value)
     hid_t a = H5Aopen(obj, name, H5P_DEFAULT);
     hid_t s = a < 0 ? -1 : H5Aget_space(a);
     int rc = -1;
-    if (s >= 0 && H5Sget_simple_extent_npoints(s) == 1 &&
+    if (s >= 0 && H5Sget_simple_extent_npoints(s) == 1 && standard_number_type(H5Aget_type(a)) &&
         H5Aread(a, H5T_NATIVE_DOUBLE, value) >= 0)
         rc = 0;
     close_id(s);
@@ -853,7 +941,8 @@ static long series_rows(hid_t g, int s)
     int rank = body_cols[s] ? 2 : 1;
     hsize_t dims[2] = {0, 0};
     long rows = -1;
-    if (sp >= 0 && H5Sget_simple_extent_dims(sp, dims, NULL) == rank &&
+    if (sp >= 0 && standard_number_type(H5Dget_type(d)) &&
+        H5Sget_simple_extent_dims(sp, dims, NULL) == rank &&
         (rank == 1 || dims[1] == (hsize_t)body_cols[s]) && dims[0] <= 0x7fffffff)
         rows = (long)dims[0];
     close_id(sp);

@@ -50,6 +50,11 @@ int stf_h5_body_append(stf_h5 *h, const char *name, double t, const double pos[3
                        const double quat[4], const double vel[3], const double angvel[3],
                        const double force[3]);
 
+/* Flushes, and lets HDF5 evict metadata again (writes keep it from doing so, see h5io.c),
+ * so that reading the file in this process (stf_h5r_open, which shares the writer's cache)
+ * stays bounded in memory. Call after the last frame. Returns 0 or -1. */
+int stf_h5_flush_for_reading(stf_h5 *h);
+
 /* Writes group /metrics with string attribute "json" (replaced if called again). */
 int stf_h5_write_metrics_json(stf_h5 *h, const char *json);
 

@@ -26,11 +26,12 @@ static void body_metrics(const stf_h5r *r, const char *name, double surface,
     memset(b, 0, sizeof *b);
     snprintf(b->name, sizeof b->name, "%s", name);
     b->first_contact_time = b->sink_time = b->float_duration = NAN;
+    b->rest_time = b->rest_duration = NAN;
     char key[128];
     snprintf(key, sizeof key, "body.%s.half_height", name);
     double hh = attr_or(r, key, 0.0);
-    double *t = NULL, *p = NULL;
-    int n = stf_h5r_body_series(r, name, &t, &p, NULL, NULL, NULL, NULL);
+    double *t = NULL, *p = NULL, *v = NULL;
+    int n = stf_h5r_body_series(r, name, &t, &p, NULL, &v, NULL, NULL);
     if (n <= 0) goto done;
     int contact = -1, descending = 1;
     double zmin = 0, zmax = 0;
@@ -67,9 +68,23 @@ static void body_metrics(const stf_h5r *r, const char *name, double surface,
     if (!isnan(b->sink_time) && !isnan(b->first_contact_time))
         b->float_duration = b->sink_time - b->first_contact_time;
     for (int a = 0; a < 3; a++) b->final_position[a] = p[3 * (n - 1) + a];
+    if (contact >= 0) { /* rest: slower than STF_REST_SPEED from then until sink or end */
+        double end = isnan(b->sink_time) ? t[n - 1] : b->sink_time;
+        int rest = -1;
+        for (int i = contact; i < n && t[i] <= end; i++) {
+            const double *w = v + 3 * i;
+            if (sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) >= STF_REST_SPEED) rest = -1;
+            else if (rest < 0) rest = i;
+        }
+        if (rest >= 0 && t[rest] < end) {
+            b->rest_time = t[rest];
+            b->rest_duration = end - t[rest];
+        }
+    }
 done:
     free(t);
     free(p);
+    free(v);
 }
 
 /* Column heights of a frame on a 2-spacing grid; returns the number of columns filled. */
@@ -320,6 +335,10 @@ char *stf_metrics_json(const stf_metrics *m)
         put_num(&b, o->sink_time);
         put(&b, ", \"float_duration\": ");
         put_num(&b, o->float_duration);
+        put(&b, ", \"rest_time\": ");
+        put_num(&b, o->rest_time);
+        put(&b, ", \"rest_duration\": ");
+        put_num(&b, o->rest_duration);
         put(&b, ", \"final_position\": [%.9g, %.9g, %.9g]}", o->final_position[0],
             o->final_position[1], o->final_position[2]);
     }
@@ -350,6 +369,8 @@ static int body_field(const stf_body_metrics *b, const char *f, double *v)
     else if (!strcmp(f, "roll_distance")) *v = b->roll_distance;
     else if (!strcmp(f, "sink_time")) *v = b->sink_time;
     else if (!strcmp(f, "float_duration")) *v = b->float_duration;
+    else if (!strcmp(f, "rest_time")) *v = b->rest_time;
+    else if (!strcmp(f, "rest_duration")) *v = b->rest_duration;
     else return -1;
     return 0;
 }

@@ -12,6 +12,10 @@
  *   surface_height.
  * - sink_time: first time the body's top (centre z + half_height) is below surface_height;
  *   float_duration = sink_time - first_contact_time.
+ * - rest_time: the first time after first contact from which the body's speed stays below
+ *   STF_REST_SPEED (0.05 m/s) until it sinks or the run ends (NAN if never);
+ *   rest_duration = (sink_time, or the end of the run) - rest_time: how long it rests on
+ *   the surface before it sinks.
  * - fluid.com_rebound_height: the largest rise of the fluid's centre of mass above any
  *   earlier height of it (a dropped blob's rebound; 0 if it never rises).
  * - fluid.finger_height: the fluid's surface as columns (cells of 2 spacings in x, y; a
@@ -36,6 +40,7 @@
 #include <stddef.h>
 
 #define STF_METRICS_MAX_BODIES 16
+#define STF_REST_SPEED 0.05 /* m/s: a body slower than this rests (rest_time) */
 
 typedef struct stf_body_metrics {
     char name[64];
@@ -45,6 +50,8 @@ typedef struct stf_body_metrics {
     double roll_distance;      /* m */
     double sink_time;          /* s, NAN if never */
     double float_duration;     /* s, NAN if it never touched or never sank */
+    double rest_time;          /* s, NAN if it never came to rest above the surface */
+    double rest_duration;      /* s, NAN if it never came to rest above the surface */
     double final_position[3];  /* m */
 } stf_body_metrics;
 

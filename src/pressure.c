@@ -12,6 +12,7 @@
  * own pressure (a mirror). Their sums depend only on the distance to the surface and are
  * tabulated once; the push they give is an impulse the collider receives back. */
 #include <math.h>
+#include <stdint.h>
 #include <string.h>
 
 #include "fluid.h"
@@ -104,6 +105,29 @@ static void density_one(stf_fluid *f, int i)
     f->rho_near[i] = Pn;
 }
 
+/* A unit vector for the coincident pair (i, j), from their persistent ids: the same line
+ * for both, pointing from i to j, so the pair's two halves stay exact negatives. Without it
+ * particles that start (or land) on the same spot get identical pushes, stay together
+ * forever, and their doubled density drives the pressure up without bound. */
+static void coincident_direction(int32_t id_i, int32_t id_j, double *ex, double *ey, double *ez)
+{
+    uint32_t lo = (uint32_t)(id_i < id_j ? id_i : id_j), hi = (uint32_t)(id_i < id_j ? id_j : id_i);
+    uint32_t hsh = lo * 2654435761u ^ (hi + 0x9e3779b9u + (lo << 6) + (lo >> 2));
+    double v[3];
+    for (int a = 0; a < 3; a++) {
+        hsh ^= hsh >> 15;
+        hsh *= 2246822519u;
+        hsh ^= hsh >> 13;
+        v[a] = (double)(hsh & 0xffff) / 32768.0 - 1.0;
+    }
+    double len = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    if (!(len > 1e-3)) v[0] = 1, v[1] = v[2] = 0, len = 1;
+    double sign = id_i < id_j ? 1.0 : -1.0;
+    *ex = sign * v[0] / len;
+    *ey = sign * v[1] / len;
+    *ez = sign * v[2] / len;
+}
+
 static void relax_one(stf_fluid *f, int i, double dt)
 {
     const double *x = f->x, *P = f->rho, *Pn = f->rho_near;
@@ -114,9 +138,14 @@ static void relax_one(stf_fluid *f, int i, double dt)
         double rx = x[3 * j] - x[3 * i], ry = x[3 * j + 1] - x[3 * i + 1],
                rz = x[3 * j + 2] - x[3 * i + 2];
         double r = sqrt(rx * rx + ry * ry + rz * rz);
-        if (r >= h || r <= 1e-12 * h) continue;
-        double a = 1.0 - r / h;
-        double D = 0.5 * dt * dt * ((P[i] + P[j]) * a + (Pn[i] + Pn[j]) * a * a) / r;
+        if (r >= h) continue;
+        double a = 1.0 - r / h, len = r;
+        if (r <= 1e-12 * h) { /* coincident: separate along a direction chosen by the ids */
+            coincident_direction(f->id[i], f->id[j], &rx, &ry, &rz);
+            a = 1.0;
+            len = 1.0; /* (rx, ry, rz) is a unit vector */
+        }
+        double D = 0.5 * dt * dt * ((P[i] + P[j]) * a + (Pn[i] + Pn[j]) * a * a) / len;
         dx -= D * rx;
         dy -= D * ry;
         dz -= D * rz;

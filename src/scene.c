@@ -706,9 +706,12 @@ static int check_blocks_inside(loader *L)
             fy_node_mapping_lookup_by_string(fy_document_root(L->fyd), "fluid", FY_NT);
         struct fy_node *blocks = fy_node_mapping_lookup_by_string(fluid, "blocks", FY_NT);
         char path[64];
+        struct fy_node *item = fy_node_sequence_get_by_index(blocks, i);
+        /* an override that moved a corner is named instead of the block's place */
+        struct fy_node *corner = fy_node_mapping_lookup_by_string(item, "min", FY_NT);
+        if (node_override(corner) < 0) corner = fy_node_mapping_lookup_by_string(item, "max", FY_NT);
         snprintf(path, sizeof path, "fluid.blocks.%d", i);
-        return fail(L, fy_node_sequence_get_by_index(blocks, i), NULL, path,
-                    "lies outside the container");
+        return fail(L, item, corner, path, "lies outside the container");
     }
     return 0;
 }
@@ -890,7 +893,7 @@ static int parse_bodies(loader *L, const mapv *top)
 static const char *const top_metrics[] = {"time_end", "surface_height", NULL};
 static const char *const body_metrics[] = {
     "first_contact_time", "bounces", "max_rebound_height", "roll_distance", "sink_time",
-    "float_duration",     NULL};
+    "float_duration",     "rest_time", "rest_duration", NULL};
 static const char *const fluid_metrics[] = {
     "particles",     "escaped",           "max_speed", "com_rebound_height",
     "finger_height", "surface_roughness", "final_com_height", "impact_time", "solid_duration", NULL};
@@ -992,7 +995,8 @@ static int parse_scene(loader *L)
 {
     static const char *const keys[] = {
         "name",      "duration", "dt",     "frame_rate", "bounce_min_rise", "fluid", "effects",
-        "container", "bodies",   "expect", NULL};
+        "container", "dt_control", "bodies", "expect", NULL};
+    static const char *const dt_controls[] = {"adaptive", "fixed", NULL};
     stf_scene *s = L->s;
     mapv top;
     if (open_map(L, fy_document_root(L->fyd), NULL, "", keys, &top)) return SCENE_BAD;
@@ -1003,6 +1007,7 @@ static int parse_scene(loader *L)
     if (need_num(L, &top, "duration", R_POS, &s->duration)) return SCENE_BAD;
     if (get_num(L, &top, "dt", R_POS, &s->dt) < 0) return SCENE_BAD;
     if (s->dt > 0.1) return fail_value(L, &top, "dt", "must be > 0 and <= 0.1");
+    if (get_choice(L, &top, "dt_control", dt_controls, &s->dt_fixed) < 0) return SCENE_BAD;
     if (get_num(L, &top, "frame_rate", R_POS, &s->frame_rate) < 0 ||
         get_num(L, &top, "bounce_min_rise", R_NONNEG, &s->bounce_min_rise) < 0)
         return SCENE_BAD;
@@ -1075,8 +1080,13 @@ static int walk_to_parent(loader *L, int oi, char **comps, int n, struct fy_node
     return 0;
 }
 
+static long utf8_invalid_at(const char *text);
+
+/* An override's value as a node of the document; NULL when it is not valid UTF-8 YAML. An
+ * alias in it would name an anchor of the file; it is refused later as not a value. */
 static struct fy_node *build_value(loader *L, const char *text)
 {
+    if (utf8_invalid_at(text) >= 0) return NULL;
     return fy_node_build_from_string(L->fyd, text[0] ? text : "~", FY_NT);
 }
 
@@ -1084,7 +1094,7 @@ static int set_last(loader *L, int oi, struct fy_node *parent, const char *comp)
 {
     const stf_override *o = &L->ov[oi];
     struct fy_node *v = build_value(L, o->value);
-    if (!v) return override_fail(L, oi, o->key, "cannot parse the value as YAML");
+    if (!v) return override_fail(L, oi, o->key, "cannot parse the value as UTF-8 YAML");
     mark_override(v, oi);
     if (fy_node_is_mapping(parent)) {
         struct fy_node_pair *p = fy_node_mapping_lookup_pair_by_string(parent, comp, FY_NT);
@@ -1154,9 +1164,103 @@ static void ignore_diag(struct fy_diag *diag, void *user, const char *buf, size_
     (void)diag, (void)user, (void)buf, (void)len;
 }
 
-/* Parses text; on a syntax error writes FILE:LINE:COL from libfyaml's collected errors. */
+/* Bounds on the work a scene file can ask of the parser. libfyaml expands aliases in
+ * place, so a few lines of nested aliases ("billion laughs") would become gigabytes; and
+ * libfyaml 0.7.12 loops forever on some invalid UTF-8 (a '%' followed by a byte >= 0x80
+ * that starts no valid sequence). Both are refused before libfyaml sees them. */
+enum { MAX_EXPANDED_NODES = 100000, MAX_ALIAS_DEPTH = 64 };
+
+/* Offset of the first byte of text that is not valid UTF-8 (RFC 3629: no overlong forms,
+ * no surrogates, nothing above U+10FFFF), or -1 when all of it is. */
+static long utf8_invalid_at(const char *text)
+{
+    const unsigned char *s = (const unsigned char *)text;
+    for (long i = 0; s[i];) {
+        unsigned c = s[i];
+        int len = c < 0x80 ? 1 : c >= 0xc2 && c <= 0xdf ? 2 : c >= 0xe0 && c <= 0xef ? 3
+                                                        : c >= 0xf0 && c <= 0xf4 ? 4 : 0;
+        if (!len) return i;
+        for (int k = 1; k < len; k++) {
+            if ((s[i + k] & 0xc0) != 0x80) return i;
+        }
+        if ((c == 0xe0 && s[i + 1] < 0xa0) || (c == 0xed && s[i + 1] >= 0xa0) ||
+            (c == 0xf0 && s[i + 1] < 0x90) || (c == 0xf4 && s[i + 1] >= 0x90))
+            return i;
+        i += len;
+    }
+    return -1;
+}
+
+/* Writes "FILE:LINE:COL: scene: not UTF-8 text" for the invalid byte at offset at. */
+static int fail_utf8(loader *L, const char *text, long at)
+{
+    int line = 1, col = 1;
+    for (long i = 0; i < at; i++) {
+        if (text[i] == '\n') line++, col = 1;
+        else if (((unsigned char)text[i] & 0xc0) != 0x80) col++;
+    }
+    snprintf(L->err, L->errlen, "%s:%d:%d: scene: not UTF-8 text (byte 0x%02x)", L->file, line,
+             col, (unsigned char)text[at]);
+    return SCENE_BAD;
+}
+
+/* Counts the nodes of n with its aliases expanded, down to *budget (an alias naming an
+ * anchor defined more than once counts every definition). Returns -1 when the budget runs
+ * out or aliases nest deeper than MAX_ALIAS_DEPTH (a recursive alias does both), and
+ * *bad is the alias where it happened. */
+static int count_expanded(struct fy_document *fyd, struct fy_node *n, int depth, long *budget,
+                          struct fy_node **bad)
+{
+    if (!n) return 0;
+    if (--*budget < 0) return -1;
+    void *it = NULL;
+    if (fy_node_is_alias(n)) {
+        size_t len = 0;
+        const char *name = fy_node_get_scalar(n, &len);
+        if (depth >= MAX_ALIAS_DEPTH) return *bad = n, -1;
+        struct fy_anchor *a;
+        while ((a = fy_document_anchor_iterate(fyd, &it))) {
+            size_t alen = 0;
+            const char *aname = fy_anchor_get_text(a, &alen);
+            if (!name || !aname || alen != len || memcmp(name, aname, len)) continue;
+            if (count_expanded(fyd, fy_anchor_node(a), depth + 1, budget, bad))
+                return *bad = *bad ? *bad : n, -1;
+        }
+        return 0;
+    }
+    if (fy_node_is_sequence(n)) {
+        struct fy_node *c;
+        while ((c = fy_node_sequence_iterate(n, &it)))
+            if (count_expanded(fyd, c, depth, budget, bad)) return -1;
+    } else if (fy_node_is_mapping(n)) {
+        struct fy_node_pair *p;
+        while ((p = fy_node_mapping_iterate(n, &it))) {
+            if (count_expanded(fyd, fy_node_pair_key(p), depth, budget, bad) ||
+                count_expanded(fyd, fy_node_pair_value(p), depth, budget, bad))
+                return -1;
+        }
+    }
+    return 0;
+}
+
+/* Writes the first error libfyaml collected in diag, as FILE:LINE:COL: YAML ...: msg. */
+static void diag_error(loader *L, struct fy_diag *diag, const char *what)
+{
+    void *it = NULL;
+    struct fy_diag_error *e = fy_diag_errors_iterate(diag, &it);
+    if (e)
+        snprintf(L->err, L->errlen, "%s:%d:%d: %s: %s", L->file, e->line, e->column, what,
+                 e->msg);
+    else
+        snprintf(L->err, L->errlen, "%s: %s", L->file, what);
+}
+
+/* Parses text, then resolves its aliases if they expand to a bounded document. On an error
+ * writes FILE:LINE:COL (libfyaml's collected errors, or the alias) and returns NULL. */
 static struct fy_document *parse_text(loader *L, const char *text)
 {
+    long bad_at = utf8_invalid_at(text);
+    if (bad_at >= 0) return fail_utf8(L, text, bad_at), NULL;
     struct fy_diag_cfg dc;
     fy_diag_cfg_default(&dc);
     dc.fp = NULL;
@@ -1168,16 +1272,24 @@ static struct fy_document *parse_text(loader *L, const char *text)
         return NULL;
     }
     fy_diag_set_collect_errors(diag, true);
-    struct fy_parse_cfg cfg = {.flags = FYPCF_QUIET | FYPCF_RESOLVE_DOCUMENT, .diag = diag};
+    struct fy_parse_cfg cfg = {.flags = FYPCF_QUIET, .diag = diag};
     struct fy_document *fyd = fy_document_build_from_string(&cfg, text, FY_NT);
-    if (!fyd) {
-        void *it = NULL;
-        struct fy_diag_error *e = fy_diag_errors_iterate(diag, &it);
-        if (e)
-            snprintf(L->err, L->errlen, "%s:%d:%d: YAML syntax error: %s", L->file, e->line,
-                     e->column, e->msg);
-        else
-            snprintf(L->err, L->errlen, "%s: YAML syntax error", L->file);
+    if (!fyd) diag_error(L, diag, "YAML syntax error");
+    long budget = MAX_EXPANDED_NODES;
+    struct fy_node *bad = NULL;
+    if (fyd && count_expanded(fyd, fy_document_root(fyd), 0, &budget, &bad)) {
+        int line = 1, col = 1;
+        node_mark(bad, &line, &col);
+        snprintf(L->err, L->errlen,
+                 "%s:%d:%d: scene: aliases expand to more than %d nodes or nest deeper than %d "
+                 "(recursive alias?)", L->file, line, col, MAX_EXPANDED_NODES, MAX_ALIAS_DEPTH);
+        fy_document_destroy(fyd);
+        fyd = NULL;
+    }
+    if (fyd && fy_document_resolve(fyd) != 0) {
+        diag_error(L, diag, "YAML alias error");
+        fy_document_destroy(fyd);
+        fyd = NULL;
     }
     /* Errors collected later (override values built in this document) would leak. */
     fy_diag_set_collect_errors(diag, false);

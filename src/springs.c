@@ -39,6 +39,7 @@ void springs_free(stf_springs *s)
     free(s->count);
     free(s->count2);
     free(s->mark);
+    free(s->gain);
     memset(s, 0, sizeof *s);
 }
 
@@ -52,7 +53,9 @@ int springs_resize(stf_springs *s, int n)
     if (c2) s->count2 = c2;
     int64_t *m = realloc(s->mark, (size_t)cap * (size_t)s->nthreads * sizeof *m);
     if (m) s->mark = m;
-    if (!c || !c2 || !m || alloc_rows(s, cap, s->stride) != 0) return -1;
+    double *g = realloc(s->gain, (size_t)cap * sizeof *g);
+    if (g) s->gain = g;
+    if (!c || !c2 || !m || !g || alloc_rows(s, cap, s->stride) != 0) return -1;
     /* Rows keep their stride, so existing lists stay where they are. */
     memset(s->count + s->n_alloc, 0, (size_t)(cap - s->n_alloc) * sizeof *c);
     for (size_t k = 0; k < (size_t)cap * (size_t)s->nthreads; k++) s->mark[k] = -1;
@@ -106,10 +109,10 @@ static double plastic_rest(double L, double r, double gamma, double alpha, doubl
 }
 
 /* Alg. 3 with Eq. 6 for one spring of particle i (to j at r = (rx, ry, rz), |r| = r, rest
- * length L): adds -D/2 to d and the history stiffness to *ksum. */
+ * length L): adds -D/2 to d, the history stiffness to *ksum and the gain to *csum. */
 static inline void push_one(const stf_fluid *f, int i, int j, double rx, double ry, double rz,
                             double r, double L, double dt, double khist_scale, double d[3],
-                            double *ksum)
+                            double *ksum, double *csum)
 {
     const double *D = f->hist.D;
     double h = f->h;
@@ -123,7 +126,9 @@ static inline void push_one(const stf_fluid *f, int i, int j, double rx, double 
         kij += kh;
         *ksum += kh;
     }
-    double mag = 0.5 * dt * dt * kij * (1.0 - L / h) * (L - r) / r;
+    double c = dt * dt * kij * (1.0 - L / h); /* the spring's gain (saturation, below) */
+    *csum += c;
+    double mag = 0.5 * c * (L - r) / r;
     d[0] -= mag * rx;
     d[1] -= mag * ry;
     d[2] -= mag * rz;
@@ -138,7 +143,7 @@ static int adjust_one(stf_fluid *f, int i, int64_t stamp, int64_t *mark, double 
 {
     stf_springs *s = &f->springs;
     const double *x = f->x;
-    double h = f->h, d[3] = {0, 0, 0}, ksum = 0;
+    double h = f->h, d[3] = {0, 0, 0}, ksum = 0, csum = 0;
     const int32_t *op = s->partner + (size_t)i * s->stride;
     const double *oL = s->rest + (size_t)i * s->stride;
     int32_t *np = s->partner2 + (size_t)i * s->stride;
@@ -157,7 +162,7 @@ static int adjust_one(stf_fluid *f, int i, int64_t stamp, int64_t *mark, double 
             nL[cnt] = L;
         }
         cnt++;
-        push_one(f, i, j, rx, ry, rz, r, L, dt, khist_scale, d, &ksum);
+        push_one(f, i, j, rx, ry, rz, r, L, dt, khist_scale, d, &ksum, &csum);
     }
     const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
     for (int k = 0; k < f->grid.count[i]; k++) {
@@ -174,11 +179,64 @@ static int adjust_one(stf_fluid *f, int i, int64_t stamp, int64_t *mark, double 
             nL[cnt] = r;
         }
         cnt++;
-        push_one(f, i, j, rx, ry, rz, r, r, dt, khist_scale, d, &ksum);
+        push_one(f, i, j, rx, ry, rz, r, r, dt, khist_scale, d, &ksum, &csum);
     }
     for (int a = 0; a < 3; a++) f->dx[3 * i + a] = d[a];
     if (f->khist_mean) f->khist_mean[i] = cnt > 0 ? (float)(ksum / cnt) : 0.0f;
+    s->gain[i] = csum;
     return cnt;
+}
+
+/* Alg. 3 with Eq. 6 for particle i over its current springs: gathers -D/2 of each into f->dx
+ * (the saturated second pass; the common pass is fused into adjust_one).
+ *
+ * Saturation. The pair (i, j) is pulled towards its rest length by the gain
+ * c_ij = dt^2 k_ij (1 - L/h), half on each side. Taken together (Jacobi) the update of
+ * particle i moves it by up to sum_j c_ij times its springs' deformations; by Gershgorin the
+ * update's eigenvalues stay <= 1 (no overshoot) when that sum is <= 1 for every particle.
+ * The history term can make k_ij arbitrarily large (at 100 times the bowling scene's k_hist,
+ * sum c_ij reaches tens and the run blew up in 20 steps), so with scale != NULL each gain is
+ * multiplied by min(scale_i, scale_j), scale_i = min(1, 1 / sum_j c_ij): a spring never does
+ * more than become rigid within the step. The factor is symmetric, so the two halves of a
+ * pair stay exact negatives (momentum). *gain gets sum_j c_ij. */
+static void displace_one(stf_fluid *f, int i, double dt, double khist_scale, const double *scale,
+                         double *gain)
+{
+    const stf_springs *s = &f->springs;
+    const double *x = f->x, *D = f->hist.D;
+    double h = f->h, dx = 0, dy = 0, dz = 0, ksum = 0, csum = 0;
+    int n = s->count[i];
+    const int32_t *p = s->partner + (size_t)i * s->stride;
+    const double *Ls = s->rest + (size_t)i * s->stride;
+    for (int k = 0; k < n; k++) {
+        int j = p[k];
+        double rx = x[3 * j] - x[3 * i], ry = x[3 * j + 1] - x[3 * i + 1],
+               rz = x[3 * j + 2] - x[3 * i + 2];
+        double r = sqrt(rx * rx + ry * ry + rz * rz);
+        if (r <= 1e-12 * h) continue; /* coincident: no direction to push along */
+        double kij = f->def.k_min;
+        if (khist_scale > 0) {
+            double ex = D[3 * i] - D[3 * j], ey = D[3 * i + 1] - D[3 * j + 1],
+                   ez = D[3 * i + 2] - D[3 * j + 2];
+            double kh = khist_scale * sqrt(ex * ex + ey * ey + ez * ez); /* Eq. 6 */
+            kh = kh > f->def.k_onset ? kh - f->def.k_onset : 0.0; /* as in push_one */
+            kij += kh;
+            ksum += kh;
+        }
+        double L = Ls[k];
+        double c = dt * dt * kij * (1.0 - L / h);
+        csum += c;
+        if (scale) c *= scale[i] < scale[j] ? scale[i] : scale[j];
+        double mag = 0.5 * c * (L - r) / r;
+        dx -= mag * rx;
+        dy -= mag * ry;
+        dz -= mag * rz;
+    }
+    f->dx[3 * i] = dx;
+    f->dx[3 * i + 1] = dy;
+    f->dx[3 * i + 2] = dz;
+    if (gain) *gain = csum;
+    if (f->khist_mean) f->khist_mean[i] = n > 0 ? (float)(ksum / n) : 0.0f;
 }
 
 int springs_step(stf_fluid *f, double dt)
@@ -215,6 +273,21 @@ int springs_step(stf_fluid *f, double dt)
     double *tr = s->rest;
     s->partner = s->partner2, s->count = s->count2, s->rest = s->rest2;
     s->partner2 = tp, s->count2 = tc, s->rest2 = tr;
+    double most_gain = 0;
+#pragma omp parallel for schedule(static) reduction(max : most_gain)
+    for (int i = 0; i < n; i++)
+        if (s->gain[i] > most_gain) most_gain = s->gain[i];
+    if (most_gain > 1.0) { /* saturate (see displace_one); the common case costs nothing more */
+#pragma omp parallel for schedule(static)
+        for (int i = 0; i < n; i++) {
+            double g = s->gain[i];
+            s->gain[i] = g > 1.0 ? 1.0 / g : 1.0;
+        }
+#pragma omp parallel for schedule(static)
+        for (int i = 0; i < n; i++) displace_one(f, i, dt, khist_scale, s->gain, NULL);
+        s->saturated_steps++;
+    }
+    s->max_gain = most_gain;
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < 3 * n; i++) f->x[i] += f->dx[i];
     return 0;
@@ -252,5 +325,5 @@ long springs_total(const stf_springs *s, int n)
 size_t springs_bytes(const stf_springs *s)
 {
     return (size_t)s->n_alloc * ((size_t)s->stride * 2 * (sizeof(int32_t) + sizeof(double)) +
-                                 2 * sizeof(int32_t) + (size_t)s->nthreads * sizeof(int64_t));
+                                 2 * sizeof(int32_t) + (size_t)s->nthreads * sizeof(int64_t) + sizeof(double));
 }

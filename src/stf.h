@@ -258,6 +258,18 @@ double stf_cy_viscosity(const stf_cy_def *cy, double g);
 /* The rest density rho0 (kg/m^3) of the Carreau-Yasuda model: the kernel sum of the cubic
  * lattice at the fluid's spacing times the particle mass (close to def.density). */
 double stf_fluid_cy_rest_density(const stf_fluid *f);
+/* Steps in which the springs saturated: some particle's spring gains dt^2 k (1 - L/h)
+ * summed to more than 1 and were scaled down so the step cannot overshoot (springs.c). The
+ * history stiffness beyond that is rigid within a step. 0 without springs. */
+long stf_fluid_saturated_steps(const stf_fluid *f);
+
+/* Largest particle speed, m/s (0 without particles). */
+double stf_fluid_max_speed(const stf_fluid *f);
+/* The last step's largest sum over a particle's springs of dt^2 k (1 - L/h) (before any
+ * saturation; dimensionless, 0 without springs): the spring network's stiffness number. */
+double stf_fluid_spring_gain(const stf_fluid *f);
+/* The length of the last step, s (0 before the first). */
+double stf_fluid_last_dt(const stf_fluid *f);
 
 /* FNV-1a hash of positions and velocities, for determinism tests. */
 uint64_t stf_fluid_hash(const stf_fluid *f);
@@ -343,6 +355,8 @@ typedef struct stf_scene {
     int nexpect;
     stf_expectation *expect;
     double *points;         /* storage of convex points of all bodies */
+    int dt_fixed;           /* 1: every substep is dt; 0 (default): adaptive substeps of at
+                               most dt (ode_glue/stf_sim.c, scenes/README.md) */
 } stf_scene;
 
 /* One --set KEY=VALUE (value != NULL) or --unset KEY (value == NULL), applied in order. */

@@ -18,8 +18,10 @@ fail() { echo "cli_bad_input: FAIL: $*" >&2; fails=$((fails + 1)); }
 
 [ -r "$BASE" ] || { echo "cli_bad_input: $BASE missing" >&2; exit 1; }
 
-# The reference output file a failed run must not touch.
-printf 'not an h5 file: precious content %s\n' "$$" >out.h5
+# The reference output file a failed run must not touch: a real output of an earlier run
+# (a non-HDF5 file is refused before anything else, which would hide a late overwrite).
+"$STF" run "$BASE" -o out.h5 --quiet --duration 0.01 || { echo "cli_bad_input: base run failed" >&2; exit 1; }
+rm -f out.xmf
 cp out.h5 out.h5.ref
 
 # line_of FILE REGEX: 1-based number of the first line matching REGEX.
@@ -96,6 +98,51 @@ L=$(line_of outside.yaml '^    - min:')
 expect_bad outside "outside\\.yaml:$L:[0-9]+: fluid\\.blocks\\.0: " 'outside the container' -- \
     "$STF" run outside.yaml -o out.h5 --quiet
 
+mk zerospacing.yaml 's/^  spacing: 0.01/  spacing: 0/'
+L=$(line_of zerospacing.yaml '^  spacing:')
+expect_bad zerospacing "zerospacing\\.yaml:$L:12: fluid\\.spacing: " '> 0' -- \
+    "$STF" run zerospacing.yaml -o out.h5 --quiet
+
+mk nanvec.yaml 's/velocity: \[0.2, 0, -0.5\]/velocity: [0.2, .NaN, -0.5]/'
+L=$(line_of nanvec.yaml 'velocity: \[0.2')
+C=$(($(sed -n "${L}p" nanvec.yaml | awk '{print index($0, ".NaN")}')))
+expect_bad nanvec "nanvec\\.yaml:$L:$C: fluid\\.blocks\\.0\\.velocity\\.1: " 'finite' -- \
+    "$STF" run nanvec.yaml -o out.h5 --quiet
+
+mk mass0.yaml 's/^    mass: 0.05/    mass: 0/'
+L=$(line_of mass0.yaml '^    mass:')
+expect_bad mass0 "mass0\\.yaml:$L:11: bodies\\.0\\.mass: " '> 0' -- \
+    "$STF" run mass0.yaml -o out.h5 --quiet
+
+mk massneg.yaml 's/^    mass: 0.05/    mass: -0.05/'
+L=$(line_of massneg.yaml '^    mass:')
+expect_bad massneg "massneg\\.yaml:$L:11: bodies\\.0\\.mass: " '> 0' -- \
+    "$STF" run massneg.yaml -o out.h5 --quiet
+
+mk density0.yaml 's/^    mass: 0.05/    density: 0/'
+L=$(line_of density0.yaml '^    density:')
+expect_bad density0 "density0\\.yaml:$L:14: bodies\\.0\\.density: " '> 0' -- \
+    "$STF" run density0.yaml -o out.h5 --quiet
+
+mk nomass.yaml '/^    mass: 0.05/d'
+expect_bad nomass "nomass\\.yaml:[0-9]+:[0-9]+: bodies\\.0\\.mass: " 'required' -- \
+    "$STF" run nomass.yaml -o out.h5 --quiet
+
+# libfyaml 0.7.12 hangs on this (found by the fuzzer); refused before parsing
+printf 'name: x\n%%\377\377\n' >utf8.yaml
+expect_bad utf8 'utf8\.yaml:2:2: scene: not UTF-8' -- "$STF" run utf8.yaml -o out.h5 --quiet
+
+# nested aliases that would expand to 10^9 nodes ("billion laughs")
+{
+    echo 'a0: &a0 [x, x, x, x, x, x, x, x, x, x]'
+    for i in 1 2 3 4 5 6 7 8; do
+        p=$((i - 1))
+        echo "a$i: &a$i [*a$p, *a$p, *a$p, *a$p, *a$p, *a$p, *a$p, *a$p, *a$p, *a$p]"
+    done
+} >laughs.yaml
+expect_bad laughs 'laughs\.yaml:[0-9]+:[0-9]+: scene: aliases expand' -- \
+    timeout 20 "$STF" run laughs.yaml -o out.h5 --quiet
+
 # the same errors through `stf check`
 expect_bad check_q15 "q15\\.yaml:[0-9]+:[0-9]+: effects\\.history\\.q: " -- \
     "$STF" check q15.yaml -o out.h5
@@ -105,6 +152,18 @@ expect_bad set_spacing '--set fluid\.spacing=-1' 'fluid\.spacing: ' '> 0' -- \
     "$STF" run "$BASE" -o out.h5 --quiet --set fluid.spacing=-1
 expect_bad set_q '--set effects\.history\.q=2' 'effects\.history\.q: ' -- \
     "$STF" run "$BASE" -o out.h5 --quiet --set effects.history.q=2
+expect_bad set_q0 '--set effects\.history\.q=0' 'effects\.history\.q: ' '\(0,1\)' -- \
+    "$STF" run "$BASE" -o out.h5 --quiet --set effects.history.q=0
+expect_bad set_q1 '--set effects\.history\.q=1' 'effects\.history\.q: ' '\(0,1\)' -- \
+    "$STF" run "$BASE" -o out.h5 --quiet --set effects.history.q=1
+expect_bad set_dneg '--set effects\.history\.d=-5' 'effects\.history\.d: ' '>= 1' -- \
+    "$STF" run "$BASE" -o out.h5 --quiet --set effects.history.d=-5
+expect_bad set_nan '--set effects\.pressure\.k=\.nan' 'effects\.pressure\.k: ' 'finite' -- \
+    "$STF" run "$BASE" -o out.h5 --quiet --set effects.pressure.k=.nan
+expect_bad set_mass0 '--set bodies\.0\.mass=0' 'bodies\.0\.mass: ' '> 0' -- \
+    "$STF" run "$BASE" -o out.h5 --quiet --set bodies.0.mass=0
+expect_bad set_outside '--set fluid\.blocks\.0\.max=' 'fluid\.blocks\.0: ' 'outside the container' -- \
+    "$STF" run "$BASE" -o out.h5 --quiet --set 'fluid.blocks.0.max=[0.04, 0.04, 0.3]'
 expect_bad unset_missing 'effects\.nothing' -- \
     "$STF" run "$BASE" -o out.h5 --quiet --unset effects.nothing
 expect_bad bad_flag '--bogus' -- \
@@ -121,11 +180,37 @@ expect_bad no_dir 'no_such_dir/out\.h5' -- \
     "$STF" run "$BASE" -o no_such_dir/out.h5 --quiet
 [ -e no_such_dir ] && fail "no_dir: the directory was created"
 
+# output paths that cannot be written, or must not be: nothing created, nothing changed
+mkdir -p adir
+expect_bad out_is_dir 'adir' -- "$STF" run "$BASE" -o adir --quiet
+[ -z "$(ls -A adir)" ] || fail "out_is_dir: something was created in adir"
+expect_bad out_under_file 'out\.h5/x\.h5' -- "$STF" run "$BASE" -o out.h5/x.h5 --quiet
+cp "$BASE" scene_copy.yaml
+expect_bad out_is_scene 'scene_copy\.yaml' 'overwrite the scene' -- \
+    "$STF" run scene_copy.yaml -o scene_copy.yaml --quiet
+cmp -s scene_copy.yaml "$BASE" || fail "out_is_scene: the scene file was changed"
+printf 'my notes\n' >notes.txt
+expect_bad out_not_hdf5 'notes\.txt' 'not an HDF5 file' -- "$STF" run "$BASE" -o notes.txt --quiet
+[ "$(cat notes.txt)" = "my notes" ] || fail "out_not_hdf5: notes.txt was changed"
+if [ "$(id -u)" -ne 0 ]; then # root writes into read-only directories
+    mkdir -p rodir && chmod a-w rodir
+    expect_bad out_readonly 'rodir/out\.h5' -- "$STF" run "$BASE" -o rodir/out.h5 --quiet
+    [ -z "$(ls -A rodir)" ] || fail "out_readonly: something was created in rodir"
+    chmod u+w rodir
+fi
+
 # --- stf report on a file that is not an stf output ---------------------------------
 head -c 4096 /dev/urandom >random.h5
 expect_bad report_random 'random\.h5' -- "$STF" report random.h5
 expect_bad report_missing 'missing\.h5' -- "$STF" report missing.h5
 expect_bad report_json_random 'random\.h5' -- "$STF" report random.h5 --json
+: >empty.h5
+expect_bad report_empty 'empty\.h5' -- "$STF" report empty.h5
+head -c $(($(stat -c %s out.h5.ref) / 2)) out.h5.ref >half.h5
+expect_bad report_truncated 'half\.h5' -- "$STF" report half.h5
+expect_bad report_dir 'adir' -- "$STF" report adir
+/usr/bin/python3 -c 'import h5py; f = h5py.File("other.h5", "w"); f["a"] = [1, 2, 3]' &&
+    expect_bad report_other 'other\.h5' 'not an stf output' -- "$STF" report other.h5
 
 if [ $fails -ne 0 ]; then
     echo "cli_bad_input: $fails failure(s)" >&2

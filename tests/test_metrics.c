@@ -92,6 +92,51 @@ static void test_drop(const char *path)
     CHECK(stf_metrics_get(&m, "fluid.final_com_height", &got) == 0, "key final_com_height");
 }
 
+/* A body of half height 0.1 m over a flat layer (surface 0.05 m + S/2 = 0.055 m): falls to
+ * contact at t = 0.1, bounces 3 cm, then from t = 0.5 creeps down at 1 cm/s (resting: slower
+ * than STF_REST_SPEED) until its top passes below the surface. Every metric is known. */
+static void test_body(const char *path)
+{
+    char err[512];
+    stf_h5 *h;
+    CHECK(stf_h5_create(path, &h, err, sizeof err) == 0, "create: %s", err);
+    if (!h) return;
+    stf_h5_attr_double(h, "spacing", S);
+    stf_h5_attr_double(h, "bounce_min_rise", 0.01);
+    stf_h5_attr_double(h, "body.ball.half_height", 0.1);
+    double x[3 * NPART], v[3 * NPART] = {0};
+    surface(0, x);
+    CHECK(stf_h5_write_frame(h, 0.0, NPART, x, v, NULL, NULL) == 0, "frame");
+    const double dt = 0.01, q[4] = {1, 0, 0, 0}, w[3] = {0}, f[3] = {0};
+    double z = 0.3;
+    for (int i = 0; i <= 300; i++) {
+        double t = i * dt, vz;
+        if (t < 0.1 - 1e-9) vz = -(0.3 - 0.15) / 0.1;       /* falls to z = 0.15 (contact) */
+        else if (t < 0.2 - 1e-9) vz = -0.5;                  /* sinks in to 0.10 */
+        else if (t < 0.3 - 1e-9) vz = 0.3;                   /* rebounds to 0.13 */
+        else if (t < 0.5 - 1e-9) vz = -0.1;                  /* settles to 0.11 */
+        else vz = -0.01;                                     /* creeps: rests, then sinks */
+        double pos[3] = {0.1, 0.1, z}, vel[3] = {0, 0, vz};
+        CHECK(stf_h5_body_append(h, "ball", t, pos, q, vel, w, f) == 0, "body row %d", i);
+        z += vz * dt;
+    }
+    CHECK(stf_h5_close(h, err, sizeof err) == 0, "close: %s", err);
+    stf_metrics m;
+    CHECK(stf_metrics_compute(path, &m, err, sizeof err) == 0, "metrics: %s", err);
+    CHECK(m.nbodies == 1, "bodies %d", m.nbodies);
+    if (m.nbodies != 1) return;
+    const stf_body_metrics *b = &m.bodies[0];
+    /* contact: z - 0.1 <= 0.055 + S, i.e. z <= 0.165, first at t = 0.09 (z = 0.165) */
+    CHECK_NEAR(b->first_contact_time, 0.09, 1e-9, "first_contact_time");
+    CHECK(b->bounces == 1, "bounces %d", b->bounces);
+    CHECK_NEAR(b->max_rebound_height, 0.03, 1e-9, "max_rebound_height");
+    /* sink: z + 0.1 < 0.055, z < -0.045: z = 0.11 - 0.01 (t - 0.5) gives t > 16 s: never */
+    CHECK(b->sink_time != b->sink_time, "sink_time %g", b->sink_time);
+    /* rest: the speed drops below 0.05 m/s at t = 0.5 and stays there */
+    CHECK_NEAR(b->rest_time, 0.5, 1e-9, "rest_time");
+    CHECK_NEAR(b->rest_duration, 2.5, 1e-9, "rest_duration (to the end of the run)");
+}
+
 int main(void)
 {
     char path[] = "/tmp/stf_test_metricsXXXXXX";
@@ -100,6 +145,7 @@ int main(void)
     close(fd);
     test_finger_height(path);
     test_drop(path);
+    test_body(path);
     unlink(path);
     char xmf[sizeof path + 8];
     snprintf(xmf, sizeof xmf, "%s.xmf", path);

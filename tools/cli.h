@@ -7,5 +7,11 @@
 int cli_run(int argc, char **argv, int check);
 int cli_report(int argc, char **argv);
 int cli_bench(int argc, char **argv); /* bench.c */
+int cli_sweep(int argc, char **argv); /* sweep.c */
+
+struct stf_metrics;
+/* Whether expectation e holds for metrics m (run.c): 1 holds, 0 fails (a null metric fails),
+ * -1 the key names no metric of this run. *value is the measured value (NAN for null). */
+int cli_expectation_holds(const stf_expectation *e, const struct stf_metrics *m, double *value);
 
 #endif

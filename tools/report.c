@@ -52,6 +52,8 @@ int cli_report(int argc, char **argv)
         line("roll_distance", b->roll_distance, "m");
         line("sink_time", b->sink_time, "s");
         line("float_duration", b->float_duration, "s");
+        line("rest_time", b->rest_time, "s");
+        line("rest_duration", b->rest_duration, "s");
         printf("  %-22s %.4g %.4g %.4g m\n", "final_position", b->final_position[0],
                b->final_position[1], b->final_position[2]);
     }

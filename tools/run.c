@@ -5,6 +5,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "cli.h"
@@ -68,6 +69,29 @@ static int parse_args(int argc, char **argv, run_args *a)
         return 2;
     }
     return 0;
+}
+
+/* Refuses an output path that would destroy something that is not a previous output: the
+ * scene file itself, or an existing non-empty file without the HDF5 signature (a typo in
+ * -o must not eat a scene or a note). Returns 0 or 2 with a message. */
+static int check_output(const char *out, const char *scene)
+{
+    struct stat so, ss;
+    if (stat(out, &so) != 0) return 0; /* does not exist (or its directory does not: create fails later) */
+    if (stat(scene, &ss) == 0 && so.st_dev == ss.st_dev && so.st_ino == ss.st_ino) {
+        fprintf(stderr, "stf: %s: the output would overwrite the scene file\n", out);
+        return 2;
+    }
+    if (!S_ISREG(so.st_mode) || so.st_size == 0) return 0; /* create reports directories */
+    static const unsigned char sig[8] = {0x89, 'H', 'D', 'F', '\r', '\n', 0x1a, '\n'};
+    unsigned char head[8] = {0};
+    FILE *fp = fopen(out, "rb");
+    size_t got = fp ? fread(head, 1, sizeof head, fp) : 0;
+    if (fp) fclose(fp);
+    if (got == sizeof head && !memcmp(head, sig, sizeof sig)) return 0;
+    fprintf(stderr, "stf: %s: exists and is not an HDF5 file; not overwriting it (remove it or "
+                    "choose another -o)\n", out);
+    return 2;
 }
 
 static char *default_out(const stf_scene *sc)
@@ -151,6 +175,19 @@ static void progress(const run_args *a, const stf_sim *sim, double end, double w
             100.0 * sim->time / end, wall);
 }
 
+int cli_expectation_holds(const stf_expectation *e, const stf_metrics *m, double *value)
+{
+    double v;
+    if (stf_metrics_get(m, e->key, &v) != 0) return -1;
+    *value = v;
+    if (isnan(v)) return 0; /* a null metric (never happened) holds no comparison */
+    if (!strcmp(e->op, "<")) return v < e->value;
+    if (!strcmp(e->op, "<=")) return v <= e->value;
+    if (!strcmp(e->op, ">")) return v > e->value;
+    if (!strcmp(e->op, ">=")) return v >= e->value;
+    return v == e->value;
+}
+
 /* Holds the scene's expect block against the metrics; prints one line each. */
 static int hold_expectations(const stf_scene *sc, const stf_metrics *m)
 {
@@ -158,18 +195,11 @@ static int hold_expectations(const stf_scene *sc, const stf_metrics *m)
     for (int k = 0; k < sc->nexpect; k++) {
         const stf_expectation *e = &sc->expect[k];
         double v;
-        int ok = 0;
-        if (stf_metrics_get(m, e->key, &v) != 0) {
+        int ok = cli_expectation_holds(e, m, &v);
+        if (ok < 0) {
             printf("FAIL  %-28s  no such metric in this run\n", e->key);
             failed++;
             continue;
-        }
-        if (!isnan(v)) {
-            if (!strcmp(e->op, "<")) ok = v < e->value;
-            else if (!strcmp(e->op, "<=")) ok = v <= e->value;
-            else if (!strcmp(e->op, ">")) ok = v > e->value;
-            else if (!strcmp(e->op, ">=")) ok = v >= e->value;
-            else ok = v == e->value;
         }
         printf("%s  %-28s  measured %-12.6g expected %s %g\n", ok ? "pass" : "FAIL", e->key, v,
                e->op, e->value);
@@ -254,10 +284,13 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
     double wall = omp_get_wtime() - t0;
     if (!a->quiet && isatty(2)) fputc('\n', stderr);
     stf_h5_attr_long(h, "particles", stf_fluid_count(sim->fluid));
-    stf_h5_attr_long(h, "substeps", sim->steps);
+    stf_h5_attr_long(h, "steps", sim->steps);
+    stf_h5_attr_long(h, "substeps", sim->substeps);
+    stf_h5_attr_long(h, "spring_saturated_substeps", stf_fluid_saturated_steps(sim->fluid));
     stf_h5_attr_double(h, "wall_seconds", wall);
-    stf_h5_attr_double(h, "dt_min", sc->dt);
-    stf_h5_attr_double(h, "dt_max", sc->dt);
+    stf_h5_attr_double(h, "dt_min", sim->dt_min > 0 ? sim->dt_min : sc->dt);
+    stf_h5_attr_double(h, "dt_max", sim->dt_max > 0 ? sim->dt_max : sc->dt);
+    stf_h5_attr_string(h, "dt_control", sc->dt_fixed ? "fixed" : "adaptive");
     if (cy && sim->steps > 0) {
         stf_h5_attr_double(h, "pressure_iterations_max", run_it_max);
         stf_h5_attr_double(h, "pressure_iterations_mean", run_it_sum / (double)sim->steps);
@@ -271,11 +304,15 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
                     100 * sc->fluid.cy.eta, run_cg_sum / (double)sim->steps, run_cg_max);
     }
     if (status == 2) fprintf(stderr, "stf: writing %s failed: %s\n", out, stf_h5_last_error(h));
+    stf_h5_flush_for_reading(h);
     if (stf_metrics_compute(out, m, err, sizeof err) == 0) {
         char *json = stf_metrics_json(m);
         if (json) stf_h5_write_metrics_json(h, json);
         free(json);
     }
+    /* how the run ended (0 done, 3 numerical failure, 130 interrupted, 2 write error): a
+       file without it was killed; `stf sweep` resumes every run not ended by 0 or 3 */
+    stf_h5_attr_long(h, "exit_status", status);
     if (stf_h5_close(h, err, sizeof err) != 0) {
         fprintf(stderr, "stf: %s\n", err);
         if (status == 0) status = 2;
@@ -303,7 +340,8 @@ int cli_run(int argc, char **argv, int check)
     char *own = a.out ? NULL : default_out(sc);
     const char *out = a.out ? a.out : own;
     stf_metrics m;
-    int status = simulate(&a, sc, out, &m);
+    int status = check_output(out, a.scene);
+    if (status == 0) status = simulate(&a, sc, out, &m);
     if (check && (status == 0 || status == 3)) {
         int failed = hold_expectations(sc, &m);
         if (status == 0) status = failed ? 1 : 0;

@@ -30,6 +30,10 @@ static void usage(FILE *to)
           "            [--error M] [--knobs dt,spacing,history] [--steps N] [--warmup N] [--duration S]\n"
           "            [--full] [--threads N]\n"
           "            [--set KEY=VALUE]... [--unset KEY]...   (cost of accuracy, paper Table 1)\n"
+          "  stf sweep SCENE (--vary KEY=V1,V2,...|--vary KEY=START:STOP:COUNT)... | --list FILE\n"
+          "            -o DIR [--repeat N] [--jobs N] [--threads N] [--duration S] [--set ...]\n"
+          "            [--plot METRIC] [--x KEY] [--series KEY] [--png FILE]   (DIR/summary.csv, .png;\n"
+          "            under mpirun the runs are spread over the ranks)\n"
           "exit codes: 0 ok, 1 expectation failed, 2 bad input, 3 numerical failure, "
           "130 interrupted\n",
           to);
@@ -49,11 +53,12 @@ int main(int argc, char **argv)
     if (!strcmp(cmd, "plot")) return cli_plot(argc - 2, argv + 2);
     if (!strcmp(cmd, "history")) return cli_history(argc - 2, argv + 2);
     if (!strcmp(cmd, "bench")) return cli_bench(argc - 2, argv + 2);
+    if (!strcmp(cmd, "sweep")) return cli_sweep(argc - 2, argv + 2);
     if (!strcmp(cmd, "--version")) {
         printf("stf %s\n", STF_VERSION);
         return 0;
     }
-    fprintf(stderr, "stf: unknown command '%s' (allowed: run, check, report, render, plot, history, bench)\n", cmd);
+    fprintf(stderr, "stf: unknown command '%s' (allowed: run, check, report, render, plot, history, bench, sweep)\n", cmd);
     usage(stderr);
     return 2;
 }

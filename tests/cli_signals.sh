@@ -1,0 +1,89 @@
+#!/usr/bin/env bash
+# No data lost when a run is stopped. SIGTERM behaves like SIGINT: the run finishes the
+# current frame, closes the file (statistics, metrics, XDMF sidecar) and exits 130. SIGKILL
+# (kill -9) cannot be caught: the file must still be readable by h5py, h5dump and
+# `stf report` up to the last complete frame, because every frame is flushed when complete
+# and HDF5 writes no metadata in between (src/h5io.c). The kills land at several moments.
+# Residual risk (HDF5 1.10 without SWMR cannot order its metadata writes): a kill inside the
+# millisecond of the flush that links a frame can still tear the root group; measured with a
+# frame every step 0 of 200 kills unloaded, but 1 of 6 once on a loaded machine; at this
+# scene's 50 frames/s 0 of 80 under load. So the kills here use 50 frames/s.
+# Args: STF_BINARY PROJECT_DIR
+set -u
+stf=$1; src=$2
+tmp=$(mktemp -d "${PWD}/cli_signals.XXXXXX"); trap 'rm -rf "$tmp"' EXIT; cd "$tmp" || exit 1
+export OMP_NUM_THREADS=1 OMP_WAIT_POLICY=passive
+scene=$src/tests/scenes/small_drop.yaml
+fails=0
+fail() { echo "cli_signals: FAIL: $*" >&2; fails=$((fails + 1)); }
+
+# waits (up to 20 s) until FILE has grown past its header: frames are being written (h5py
+# cannot look while the writer holds HDF5's file lock)
+wait_frames() {
+    for _ in $(seq 200); do
+        [ "$(stat -c %s "$1" 2>/dev/null || echo 0)" -gt 100000 ] && return 0
+        sleep 0.1
+    done
+    return 1
+}
+
+# --- SIGTERM: like SIGINT ----------------------------------------------------------------
+"$stf" run "$scene" -o term.h5 --duration 1000 --quiet --threads 1 2>term.txt &
+pid=$!
+wait_frames term.h5 || fail "SIGTERM: no frame written in 20 s"
+kill -TERM $pid
+wait $pid
+rc=$?
+[ $rc -eq 130 ] || fail "SIGTERM: exit $rc, want 130 ($(cat term.txt))"
+grep -q "interrupted at t = " term.txt || fail "SIGTERM: no 'interrupted' message: $(cat term.txt)"
+[ -s term.xmf ] || fail "SIGTERM: no XDMF sidecar (file not closed normally)"
+/usr/bin/python3 - <<'PY' || fail "SIGTERM: term.h5 incomplete"
+import h5py, numpy as np
+f = h5py.File("term.h5", "r")
+steps = sorted(int(k[5:]) for k in f if k.startswith("Step#"))
+assert steps == list(range(len(steps))) and len(steps) >= 2, steps
+last = f["Step#%d" % steps[-1]]
+# the last frame is the one the run finished: the time the statistics give
+assert abs(last.attrs["TimeValue"] - f.attrs["steps"] * f.attrs["dt"]) < 1e-9
+assert "json" in f["metrics"].attrs
+PY
+"$stf" report term.h5 >/dev/null || fail "SIGTERM: stf report failed"
+
+# --- SIGKILL: readable up to the last complete frame --------------------------------------
+for delay in 0.05 0.2 0.35 0.5 0.7 0.9; do
+    rm -f kill.h5 kill.xmf
+    "$stf" run "$scene" -o kill.h5 --duration 1000 --quiet --threads 1 2>/dev/null &
+    pid=$!
+    wait_frames kill.h5 || fail "kill after $delay s: no frame written in 20 s"
+    sleep "$delay"
+    kill -KILL $pid
+    wait $pid 2>/dev/null
+    /usr/bin/python3 - <<'PY' || fail "kill after $delay s: kill.h5 not readable by h5py"
+import h5py, numpy as np
+f = h5py.File("kill.h5", "r")
+steps = sorted(int(k[5:]) for k in f if k.startswith("Step#"))
+assert steps == list(range(len(steps))) and len(steps) >= 2, steps
+t = -1.0
+for s in steps:
+    g = f["Step#%d" % s]
+    assert g.attrs["TimeValue"] > t
+    t = g.attrs["TimeValue"]
+    n = g["x"].shape[0]
+    for k in ("x", "y", "z", "vx", "vy", "vz", "khist", "id"):
+        a = g[k][:]
+        assert a.shape == (n,) and np.all(np.isfinite(a)), (s, k)
+b = f["bodies/ball"]
+for k in b:
+    assert np.all(np.isfinite(b[k][:])), k
+assert b["time"].shape[0] >= 1
+PY
+    h5dump -H kill.h5 >/dev/null 2>&1 || fail "kill after $delay s: h5dump -H fails"
+    "$stf" report kill.h5 >/dev/null 2>report.txt ||
+        fail "kill after $delay s: stf report failed: $(cat report.txt)"
+done
+
+if [ $fails -ne 0 ]; then
+    echo "cli_signals: $fails failure(s)" >&2
+    exit 1
+fi
+echo "cli_signals: ok"

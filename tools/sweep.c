@@ -1,0 +1,774 @@
+/* sweep.c - `stf sweep SCENE --vary KEY=V1,V2,... -o DIR`: many runs of one scene.
+ *
+ * The runs are the grid of the --vary values (last key fastest) or the rows of a --list file,
+ * each repeated --repeat times. Every run is a plain `stf run` of the scene with the run's
+ * --set's into DIR/run_NNNN.h5 (log in DIR/run_NNNN.log): locally as child processes of this
+ * same program, --jobs at a time; under mpirun (built with MPI) in-process on the ranks,
+ * run i on rank i mod size. The results are read back from the files, so a summary does not
+ * depend on who ran what: DIR/summary.csv has one row per run (the varied values, exit
+ * status, the scene's expectations held or not, wall time, every metric) and DIR/summary.png
+ * plots one metric against one or two varied keys.
+ *
+ * Resume: DIR/plan.txt records the runs' arguments; a sweep started again on the same DIR
+ * with the same plan skips every run whose file says it ended (root attribute exit_status 0
+ * or 3, written by `stf run` when it closes the file) and reruns the others. */
+#define _XOPEN_SOURCE 700 /* realpath */
+#include <errno.h>
+#include <fcntl.h>
+#include <math.h>
+#include <omp.h>
+#include <signal.h>
+#include <spawn.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#ifdef STF_HAVE_MPI
+#include <mpi.h>
+#endif
+
+#include "cli.h"
+#include "h5io.h"
+#include "metrics.h"
+#include "sweep.h"
+
+extern char **environ;
+
+#define MAX_KEYS SWEEP_MAX_KEYS
+#define MAX_FIXED 64
+
+static const char *USAGE =
+    "usage: stf sweep SCENE (--vary KEY=V1,V2,...|--vary KEY=START:STOP:COUNT)... | --list FILE\n"
+    "                 -o DIR [--repeat N] [--jobs N] [--threads N] [--duration S]\n"
+    "                 [--set KEY=VALUE]... [--unset KEY]... [--plot METRIC] [--x KEY]\n"
+    "                 [--series KEY] [--png FILE.png] [--quiet]";
+
+typedef struct sweep_args {
+    const char *scene, *dir, *list, *plot_metric, *plot_x, *plot_series, *png;
+    char *vary[MAX_KEYS];
+    int nvary;
+    const char *fixed[2 * MAX_FIXED]; /* "--set", "K=V" / "--unset", "K" pairs */
+    int nfixed;
+    const char *duration;
+    int repeat, jobs, threads, quiet;
+} sweep_args;
+
+static volatile sig_atomic_t stop_sweep;
+static void on_signal(int sig) { stop_sweep = sig; }
+
+static int bad(const char *msg, const char *arg)
+{
+    fprintf(stderr, "stf sweep: %s '%s'\n%s\n", msg, arg, USAGE);
+    return 2;
+}
+
+static int parse_int(const char *s, int lo, int hi, int *out)
+{
+    char *end;
+    long v = strtol(s, &end, 10);
+    if (*end || end == s || v < lo || v > hi) return -1;
+    *out = (int)v;
+    return 0;
+}
+
+static int parse_args(int argc, char **argv, sweep_args *a)
+{
+    memset(a, 0, sizeof *a);
+    a->repeat = 1;
+    for (int i = 0; i < argc; i++) {
+        const char *s = argv[i];
+        int more = i + 1 < argc;
+        if ((!strcmp(s, "-o") || !strcmp(s, "--out")) && more) a->dir = argv[++i];
+        else if (!strcmp(s, "--vary") && more) {
+            if (a->nvary == MAX_KEYS) return bad("too many --vary keys at", argv[i + 1]);
+            a->vary[a->nvary++] = argv[++i];
+        } else if (!strcmp(s, "--list") && more) a->list = argv[++i];
+        else if ((!strcmp(s, "--set") || !strcmp(s, "--unset")) && more) {
+            if (a->nfixed == MAX_FIXED) return bad("too many --set/--unset at", argv[i + 1]);
+            if (!strcmp(s, "--set") && !strchr(argv[i + 1], '='))
+                return bad("--set needs KEY=VALUE, got", argv[i + 1]);
+            a->fixed[2 * a->nfixed] = s;
+            a->fixed[2 * a->nfixed++ + 1] = argv[++i];
+        } else if (!strcmp(s, "--repeat") && more) {
+            if (parse_int(argv[++i], 1, 1000, &a->repeat)) return bad("--repeat must be in [1,1000], got", argv[i]);
+        } else if (!strcmp(s, "--jobs") && more) {
+            if (parse_int(argv[++i], 1, 1024, &a->jobs)) return bad("--jobs must be in [1,1024], got", argv[i]);
+        } else if (!strcmp(s, "--threads") && more) {
+            if (parse_int(argv[++i], 1, 1024, &a->threads)) return bad("--threads must be in [1,1024], got", argv[i]);
+        } else if (!strcmp(s, "--duration") && more) {
+            char *end;
+            double d = strtod(argv[++i], &end);
+            if (*end || !(d > 0) || !isfinite(d)) return bad("--duration must be a number of seconds > 0, got", argv[i]);
+            a->duration = argv[i];
+        } else if (!strcmp(s, "--plot") && more) a->plot_metric = argv[++i];
+        else if (!strcmp(s, "--x") && more) a->plot_x = argv[++i];
+        else if (!strcmp(s, "--png") && more) a->png = argv[++i];
+        else if (!strcmp(s, "--series") && more) a->plot_series = argv[++i];
+        else if (!strcmp(s, "--quiet") || !strcmp(s, "-q")) a->quiet = 1;
+        else if (!strcmp(s, "-h") || !strcmp(s, "--help")) {
+            puts(USAGE);
+            return 1;
+        } else if (s[0] == '-') return bad("unknown or incomplete option", s);
+        else if (!a->scene) a->scene = s;
+        else return bad("unexpected argument", s);
+    }
+    if (!a->scene) return bad("no scene file given", "");
+    if (!a->dir) return bad("no output directory given (-o DIR)", "");
+    if (!a->nvary && !a->list) return bad("nothing to vary: give --vary KEY=... or --list FILE", "");
+    if (a->nvary && a->list) return bad("--vary and --list exclude each other; got --list", a->list);
+    return 0;
+}
+
+/* ---------------------------------------------------------------- the plan */
+
+static char *dup_n(const char *s, size_t n)
+{
+    char *p = malloc(n + 1);
+    if (!p) abort();
+    memcpy(p, s, n);
+    p[n] = 0;
+    return p;
+}
+
+static void add_value(sweep_key *k, char *v)
+{
+    char **nv = realloc(k->val, (size_t)(k->nval + 1) * sizeof *nv);
+    if (!nv) abort();
+    k->val = nv;
+    k->val[k->nval++] = v;
+}
+
+/* KEY=V1,V2,... (commas inside [...] belong to a flow sequence) or KEY=START:STOP:COUNT. */
+static int parse_vary(const char *spec, sweep_key *k)
+{
+    const char *eq = strchr(spec, '=');
+    if (!eq || eq == spec || !eq[1]) return bad("--vary needs KEY=V1,V2,... or KEY=START:STOP:COUNT, got", spec);
+    k->key = dup_n(spec, (size_t)(eq - spec));
+    const char *v = eq + 1;
+    double a, b;
+    int n, used = 0;
+    if (v[0] != '[' && sscanf(v, "%lf:%lf:%d%n", &a, &b, &n, &used) == 3 && !v[used]) {
+        if (n < 1 || n > 100000 || !isfinite(a) || !isfinite(b))
+            return bad("--vary START:STOP:COUNT needs finite ends and COUNT >= 1, got", spec);
+        for (int i = 0; i < n; i++) {
+            char buf[32];
+            /* the ends exactly; %.10g so that 0:1:11 gives 0.1, not 0.10000000000000001 */
+            snprintf(buf, sizeof buf, "%.10g", n == 1 ? a : i == n - 1 ? b : a + (b - a) * i / (n - 1));
+            add_value(k, dup_n(buf, strlen(buf)));
+        }
+        return 0;
+    }
+    int depth = 0;
+    const char *start = v;
+    for (const char *p = v;; p++) {
+        if (*p == '[') depth++;
+        else if (*p == ']') depth--;
+        if (*p == 0 || (*p == ',' && depth == 0)) {
+            if (p == start) return bad("--vary has an empty value in", spec);
+            add_value(k, dup_n(start, (size_t)(p - start)));
+            if (!*p) break;
+            start = p + 1;
+        }
+    }
+    return 0;
+}
+
+static int key_index(sweep_plan *p, const char *key)
+{
+    for (int i = 0; i < p->nkeys; i++)
+        if (!strcmp(p->keys[i].key, key)) return i;
+    if (p->nkeys == MAX_KEYS) return -1;
+    memset(&p->keys[p->nkeys], 0, sizeof p->keys[0]);
+    p->keys[p->nkeys].key = dup_n(key, strlen(key));
+    return p->nkeys++;
+}
+
+static void add_run(sweep_plan *p, char **vals, int combo, int rep)
+{
+    sweep_run *nr = realloc(p->runs, (size_t)(p->nruns + 1) * sizeof *nr);
+    if (!nr) abort();
+    p->runs = nr;
+    sweep_run *r = &p->runs[p->nruns++];
+    memset(r, 0, sizeof *r);
+    r->combo = combo;
+    r->repeat = rep;
+    r->status = -1;
+    for (int i = 0; i < MAX_KEYS; i++) r->val[i] = vals[i];
+}
+
+/* A list file: one run a line, whitespace-separated KEY=VALUE; '#' starts a comment. */
+static int read_list(const char *path, sweep_plan *p, int repeat)
+{
+    FILE *f = fopen(path, "r");
+    if (!f) {
+        fprintf(stderr, "stf sweep: %s: %s\n", path, strerror(errno));
+        return 2;
+    }
+    char line[4096];
+    int ln = 0, combo = 0;
+    while (fgets(line, sizeof line, f)) {
+        ln++;
+        char *hash = strchr(line, '#');
+        if (hash) *hash = 0;
+        char *vals[MAX_KEYS] = {0};
+        int any = 0;
+        for (char *save, *tok = strtok_r(line, " \t\r\n", &save); tok; tok = strtok_r(NULL, " \t\r\n", &save)) {
+            char *eq = strchr(tok, '=');
+            int col = (int)(tok - line) + 1;
+            if (!eq || eq == tok || !eq[1]) {
+                fprintf(stderr, "%s:%d:%d: %s: expected KEY=VALUE\n", path, ln, col, tok);
+                fclose(f);
+                return 2;
+            }
+            *eq = 0;
+            int k = key_index(p, tok);
+            if (k < 0) {
+                fprintf(stderr, "%s:%d:%d: %s: more than %d keys\n", path, ln, col, tok, MAX_KEYS);
+                fclose(f);
+                return 2;
+            }
+            if (vals[k]) {
+                fprintf(stderr, "%s:%d:%d: %s: set twice on one line\n", path, ln, col, tok);
+                fclose(f);
+                return 2;
+            }
+            vals[k] = dup_n(eq + 1, strlen(eq + 1));
+            any = 1;
+        }
+        if (!any) continue;
+        for (int r = 0; r < repeat; r++) add_run(p, vals, combo, r);
+        combo++;
+    }
+    fclose(f);
+    if (p->nruns == 0) {
+        fprintf(stderr, "stf sweep: %s: no runs in the list\n", path);
+        return 2;
+    }
+    return 0;
+}
+
+static int build_plan(const sweep_args *a, sweep_plan *p)
+{
+    memset(p, 0, sizeof *p);
+    if (a->list) return read_list(a->list, p, a->repeat);
+    long total = 1;
+    for (int i = 0; i < a->nvary; i++) {
+        int rc = parse_vary(a->vary[i], &p->keys[i]);
+        p->nkeys = i + 1;
+        if (rc) return rc;
+        for (int j = 0; j < i; j++)
+            if (!strcmp(p->keys[j].key, p->keys[i].key)) return bad("a key is varied twice:", p->keys[i].key);
+        total *= p->keys[i].nval;
+        if (total > 100000) return bad("more than 100000 runs at", a->vary[i]);
+    }
+    for (long c = 0; c < total; c++) {
+        char *vals[MAX_KEYS] = {0};
+        long rest = c;
+        for (int i = p->nkeys - 1; i >= 0; i--) {
+            vals[i] = p->keys[i].val[rest % p->keys[i].nval];
+            rest /= p->keys[i].nval;
+        }
+        for (int r = 0; r < a->repeat; r++) add_run(p, vals, (int)c, r);
+    }
+    return 0;
+}
+
+/* The `stf run` arguments of run i (after "run"), in static buffers that cli_run may
+ * write into (it splits --set KEY=VALUE in place); valid until the next call. */
+static int run_argv(const sweep_args *a, const sweep_plan *p, int i, int threads, char *outbuf,
+                    size_t outlen, char **argv)
+{
+    static char buf[MAX_FIXED + MAX_KEYS + 2][4096];
+    int n = 0, b = 0;
+    argv[n++] = (char *)a->scene;
+    snprintf(outbuf, outlen, "%s/run_%04d.h5", a->dir, i);
+    argv[n++] = "-o";
+    argv[n++] = outbuf;
+    for (int f = 0; f < a->nfixed; f++) {
+        argv[n++] = (char *)a->fixed[2 * f];
+        snprintf(buf[b], sizeof buf[b], "%s", a->fixed[2 * f + 1]);
+        argv[n++] = buf[b++];
+    }
+    for (int k = 0; k < p->nkeys; k++) {
+        if (!p->runs[i].val[k]) continue;
+        snprintf(buf[b], sizeof buf[b], "%s=%s", p->keys[k].key, p->runs[i].val[k]);
+        argv[n++] = "--set";
+        argv[n++] = buf[b++];
+    }
+    if (a->duration) {
+        argv[n++] = "--duration";
+        argv[n++] = (char *)a->duration;
+    }
+    snprintf(buf[b], sizeof buf[b], "%d", threads);
+    argv[n++] = "--threads";
+    argv[n++] = buf[b];
+    argv[n++] = "--quiet";
+    argv[n] = NULL;
+    return n;
+}
+
+/* Loads the scene with run i's overrides: a bad key or value is reported before any run. */
+static int check_run(const sweep_args *a, const sweep_plan *p, int i, stf_scene **out)
+{
+    stf_override ov[MAX_FIXED + MAX_KEYS];
+    char kv[MAX_FIXED + MAX_KEYS][4096];
+    int n = 0;
+    for (int f = 0; f < a->nfixed; f++, n++) {
+        snprintf(kv[n], sizeof kv[n], "%s", a->fixed[2 * f + 1]);
+        char *eq = strchr(kv[n], '=');
+        if (eq) *eq = 0;
+        ov[n].key = kv[n];
+        ov[n].value = !strcmp(a->fixed[2 * f], "--set") && eq ? eq + 1 : NULL;
+    }
+    for (int k = 0; k < p->nkeys; k++) {
+        if (!p->runs[i].val[k]) continue;
+        snprintf(kv[n], sizeof kv[n], "%s", p->runs[i].val[k]);
+        ov[n].key = p->keys[k].key;
+        ov[n].value = kv[n];
+        n++;
+    }
+    char err[2048];
+    if (stf_scene_load(a->scene, ov, n, out, err, sizeof err) != 0) {
+        fprintf(stderr, "%s\n", err);
+        return 2;
+    }
+    return 0;
+}
+
+/* Writes DIR/plan.txt, or checks that the one there is the same sweep. */
+static int write_plan(const sweep_args *a, const sweep_plan *p)
+{
+    size_t cap = 1 << 16, len = 0;
+    char *text = malloc(cap);
+    if (!text) abort();
+    char *scene = realpath(a->scene, NULL); /* the same scene by any path */
+    len += (size_t)snprintf(text, cap, "stf sweep plan: %s\n", scene ? scene : a->scene);
+    free(scene);
+    for (int i = 0; i < p->nruns; i++) {
+        char out[4096], *argv[2 * (MAX_FIXED + MAX_KEYS) + 16];
+        int n = run_argv(a, p, i, 1, out, sizeof out, argv);
+        argv[2] = out + strlen(a->dir) + 1; /* run_NNNN.h5: the same DIR by any path */
+        for (int j = 1; j < n - 3; j++) { /* no scene, no --threads/--quiet */
+            size_t need = strlen(argv[j]) + 2;
+            if (len + need + 2 > cap) {
+                cap = 2 * cap + need;
+                char *nt = realloc(text, cap);
+                if (!nt) abort();
+                text = nt;
+            }
+            len += (size_t)snprintf(text + len, cap - len, "%s%s", argv[j], j == n - 4 ? "\n" : " ");
+        }
+    }
+    char path[4096];
+    snprintf(path, sizeof path, "%s/plan.txt", a->dir);
+    FILE *f = fopen(path, "r");
+    if (f) {
+        char *old = malloc(len + 2);
+        if (!old) abort();
+        size_t got = fread(old, 1, len + 1, f);
+        fclose(f);
+        int same = got == len && !memcmp(old, text, len);
+        free(old);
+        free(text);
+        if (!same) {
+            fprintf(stderr, "stf sweep: %s holds a different sweep (other scene, keys, values or "
+                            "--set's); nothing was changed: choose another -o DIR or delete it\n", path);
+            return 2;
+        }
+        return 0;
+    }
+    f = fopen(path, "w");
+    int ok = f && fwrite(text, 1, len, f) == len;
+    if (f && fclose(f) != 0) ok = 0;
+    free(text);
+    if (!ok) {
+        fprintf(stderr, "stf sweep: cannot write %s: %s\n", path, strerror(errno));
+        return 2;
+    }
+    return 0;
+}
+
+/* ---------------------------------------------------------------- the runs */
+
+/* exit_status of a finished run file, or -1 if the file is missing, unreadable or unfinished. */
+static int file_status(const char *path)
+{
+    if (access(path, R_OK) != 0) return -1;
+    char err[512];
+    stf_h5r *r;
+    if (stf_h5r_open(path, &r, err, sizeof err) != 0) return -1;
+    double st;
+    int rc = stf_h5r_attr_double(r, "exit_status", &st);
+    stf_h5r_close(r);
+    return rc == 0 ? (int)st : -1;
+}
+
+static int done(int status) { return status == 0 || status == 3; }
+
+static int spawn_run(const sweep_args *a, const sweep_plan *p, int i, int threads, const char *self, pid_t *pid)
+{
+    char out[4096], logp[4096], *argv[2 * (MAX_FIXED + MAX_KEYS) + 18];
+    argv[0] = (char *)self;
+    argv[1] = "run";
+    run_argv(a, p, i, threads, out, sizeof out, argv + 2);
+    snprintf(logp, sizeof logp, "%s/run_%04d.log", a->dir, i);
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_addopen(&fa, 1, logp, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_adddup2(&fa, 1, 2);
+    int rc = posix_spawn(pid, self, &fa, NULL, argv, environ);
+    posix_spawn_file_actions_destroy(&fa);
+    if (rc != 0) fprintf(stderr, "stf sweep: cannot start %s: %s\n", self, strerror(rc));
+    return rc ? 2 : 0;
+}
+
+static void say_run(const sweep_args *a, const sweep_plan *p, int i, int status, const char *who)
+{
+    if (a->quiet) return;
+    fprintf(stderr, "stf sweep: run %d/%d", i + 1, p->nruns);
+    for (int k = 0; k < p->nkeys; k++)
+        if (p->runs[i].val[k]) fprintf(stderr, " %s=%s", p->keys[k].key, p->runs[i].val[k]);
+    if (p->runs[i].repeat > 0 || a->repeat > 1) fprintf(stderr, " (repeat %d)", p->runs[i].repeat);
+    fprintf(stderr, ": %s%s\n", status == 0 ? "done" : status == 3 ? "numerical failure" : status == 130 ? "interrupted" : "failed", who);
+}
+
+/* Runs the pending runs locally, `jobs` child processes at a time. Returns 0, 130 or 2. */
+static int run_local(const sweep_args *a, sweep_plan *p, const int *todo, int ntodo, int jobs, int threads)
+{
+    char self[4096];
+    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+    if (n <= 0) {
+        fprintf(stderr, "stf sweep: cannot find this program (/proc/self/exe): %s\n", strerror(errno));
+        return 2;
+    }
+    self[n] = 0;
+    pid_t *pids = calloc((size_t)jobs, sizeof *pids);
+    int *slot_run = calloc((size_t)jobs, sizeof *slot_run);
+    if (!pids || !slot_run) abort();
+    int next = 0, running = 0, rc = 0, forwarded = 0;
+    while (next < ntodo || running > 0) {
+        while (running < jobs && next < ntodo && !stop_sweep && rc == 0) {
+            int s = 0;
+            while (pids[s]) s++;
+            if (spawn_run(a, p, todo[next], threads, self, &pids[s]) != 0) {
+                rc = 2;
+                break;
+            }
+            slot_run[s] = todo[next++];
+            running++;
+        }
+        if (running == 0) break;
+        int ws;
+        pid_t got = waitpid(-1, &ws, 0);
+        if (got < 0) {
+            if (errno != EINTR) break;
+            /* a signal to the sweep alone (kill PID): pass it on, the runs save what they have */
+            for (int s = 0; s < jobs && stop_sweep && !forwarded; s++)
+                if (pids[s]) kill(pids[s], SIGINT);
+            forwarded = stop_sweep != 0;
+            continue;
+        }
+        for (int s = 0; s < jobs; s++)
+            if (pids[s] == got) {
+                int st = WIFEXITED(ws) ? WEXITSTATUS(ws) : 128 + (WIFSIGNALED(ws) ? WTERMSIG(ws) : 0);
+                p->runs[slot_run[s]].status = st;
+                say_run(a, p, slot_run[s], st, "");
+                if (!done(st) && st != 130 && st < 128) {
+                    fprintf(stderr, "stf sweep: run %d exited %d; see %s/run_%04d.log\n", slot_run[s], st, a->dir, slot_run[s]);
+                    if (rc == 0) rc = 2;
+                }
+                pids[s] = 0;
+                running--;
+            }
+    }
+    free(pids);
+    free(slot_run);
+    if (stop_sweep && rc == 0) rc = 130;
+    return rc;
+}
+
+/* ---------------------------------------------------------------- the summary */
+
+static void csv_field(FILE *f, const char *s)
+{
+    if (!s) return;
+    if (!strpbrk(s, ",\"\n")) {
+        fputs(s, f);
+        return;
+    }
+    fputc('"', f);
+    for (; *s; s++) {
+        if (*s == '"') fputc('"', f);
+        fputc(*s, f);
+    }
+    fputc('"', f);
+}
+
+/* ",value" with every bit of the double; a null (never happened) is an empty field. */
+static void csv_num(FILE *f, double v)
+{
+    fputc(',', f);
+    if (!isnan(v)) fprintf(f, "%.17g", v);
+}
+
+/* Reads every run's file: status, metrics, expectations, wall time. */
+static void collect(const sweep_args *a, sweep_plan *p)
+{
+    for (int i = 0; i < p->nruns; i++) {
+        sweep_run *r = &p->runs[i];
+        char path[4096], err[1024];
+        snprintf(path, sizeof path, "%s/run_%04d.h5", a->dir, i);
+        r->status = file_status(path);
+        r->wall = NAN;
+        if (!done(r->status)) continue; /* a partial run's metrics would mislead: rerun it */
+        if (stf_metrics_compute(path, &r->m, err, sizeof err) != 0) {
+            fprintf(stderr, "stf sweep: %s: %s\n", path, err);
+            r->status = -1;
+            continue;
+        }
+        r->have_metrics = 1;
+        stf_h5r *h;
+        if (stf_h5r_open(path, &h, err, sizeof err) == 0) {
+            stf_h5r_attr_double(h, "wall_seconds", &r->wall);
+            stf_h5r_close(h);
+        }
+        stf_scene *sc;
+        r->failed = -1;
+        if (check_run(a, p, i, &sc) == 0) {
+            r->nexpect = sc->nexpect;
+            r->failed = 0;
+            for (int e = 0; e < sc->nexpect; e++) {
+                double v;
+                r->failed += cli_expectation_holds(&sc->expect[e], &r->m, &v) != 1;
+            }
+            stf_scene_free(sc);
+        }
+    }
+}
+
+static const char *BODY_FIELDS[] = {"first_contact_time", "bounces", "max_rebound_height", "roll_distance",
+                                    "sink_time", "float_duration", "rest_time", "rest_duration", NULL};
+static const char *FLUID_FIELDS[] = {"particles", "escaped", "max_speed", "com_rebound_height",
+                                     "finger_height", "surface_roughness", "final_com_height",
+                                     "impact_time", "solid_duration", NULL};
+
+static int write_summary(const sweep_args *a, const sweep_plan *p)
+{
+    const stf_metrics *m0 = NULL;
+    for (int i = 0; i < p->nruns && !m0; i++)
+        if (p->runs[i].have_metrics) m0 = &p->runs[i].m;
+    char path[4096];
+    snprintf(path, sizeof path, "%s/summary.csv", a->dir);
+    FILE *f = fopen(path, "w");
+    if (!f) {
+        fprintf(stderr, "stf sweep: cannot write %s: %s\n", path, strerror(errno));
+        return 2;
+    }
+    fputs("run", f);
+    for (int k = 0; k < p->nkeys; k++) fputc(',', f), csv_field(f, p->keys[k].key);
+    fputs(",repeat,status,pass,expectations_failed,wall_seconds,time_end,surface_height", f);
+    int nb = m0 ? m0->nbodies : 0;
+    for (int b = 0; b < nb; b++) {
+        for (int j = 0; BODY_FIELDS[j]; j++) fprintf(f, ",%s.%s", m0->bodies[b].name, BODY_FIELDS[j]);
+        fprintf(f, ",%s.final_x,%s.final_y,%s.final_z", m0->bodies[b].name, m0->bodies[b].name, m0->bodies[b].name);
+    }
+    for (int j = 0; FLUID_FIELDS[j]; j++) fprintf(f, ",fluid.%s", FLUID_FIELDS[j]);
+    fputs(",fluid.nan\n", f);
+    for (int i = 0; i < p->nruns; i++) {
+        const sweep_run *r = &p->runs[i];
+        fprintf(f, "%d", i);
+        for (int k = 0; k < p->nkeys; k++) fputc(',', f), csv_field(f, r->val[k]);
+        char st[32];
+        if (r->status == 0 || r->status == 3 || r->status == 130 || r->status < 0)
+            snprintf(st, sizeof st, "%s", r->status == 0 ? "ok" : r->status == 3 ? "numerical_failure"
+                                          : r->status == 130 ? "interrupted" : "missing");
+        else snprintf(st, sizeof st, "exit_%d", r->status);
+        fprintf(f, ",%d,%s,", r->repeat, st);
+        if (r->have_metrics && r->failed >= 0) fprintf(f, "%s,%d", r->failed ? "fail" : "pass", r->failed);
+        else fputc(',', f);
+        if (!r->have_metrics) {
+            fputc('\n', f);
+            continue;
+        }
+        csv_num(f, r->wall);
+        csv_num(f, r->m.time_end);
+        csv_num(f, r->m.surface_height);
+        for (int b = 0; b < nb; b++) {
+            for (int j = 0; BODY_FIELDS[j]; j++) {
+                char key[160];
+                double v = NAN;
+                snprintf(key, sizeof key, "%s.%s", m0->bodies[b].name, BODY_FIELDS[j]);
+                if (stf_metrics_get(&r->m, key, &v) != 0) v = NAN;
+                csv_num(f, v);
+            }
+            for (int d = 0; d < 3; d++) csv_num(f, b < r->m.nbodies ? r->m.bodies[b].final_position[d] : NAN);
+        }
+        for (int j = 0; FLUID_FIELDS[j]; j++) {
+            char key[160];
+            double v = NAN;
+            snprintf(key, sizeof key, "fluid.%s", FLUID_FIELDS[j]);
+            stf_metrics_get(&r->m, key, &v);
+            csv_num(f, v);
+        }
+        fprintf(f, ",%d\n", r->m.nan);
+    }
+    if (fclose(f) != 0) {
+        fprintf(stderr, "stf sweep: writing %s failed\n", path);
+        return 2;
+    }
+    return 0;
+}
+
+static int finish(const sweep_args *a, sweep_plan *p, int rc)
+{
+    collect(a, p);
+    int w = write_summary(a, p);
+    int missing = 0, failed = 0;
+    for (int i = 0; i < p->nruns; i++) {
+        missing += !done(p->runs[i].status);
+        failed += p->runs[i].have_metrics && p->runs[i].failed != 0;
+    }
+    char err[512];
+    char png[4096];
+    snprintf(png, sizeof png, "%s/summary.png", a->dir);
+    int plotted = sweep_plot(a->png ? a->png : png, p, a->plot_metric, a->plot_x, a->plot_series, err, sizeof err);
+    if (plotted != 0) fprintf(stderr, "stf sweep: no plot: %s\n", err);
+    if (!a->quiet)
+        fprintf(stderr, "stf sweep: %d runs, %d unfinished, %d failing expectations; %s/summary.csv%s%s\n",
+                p->nruns, missing, failed, a->dir, plotted == 0 ? ", " : "", plotted == 0 ? (a->png ? a->png : png) : "");
+    if (rc) return rc;
+    if (w) return w;
+    if (missing) return 2;
+    return failed ? 1 : 0;
+}
+
+static void plan_free(sweep_plan *p, int from_list)
+{
+    for (int k = 0; k < p->nkeys; k++) {
+        free(p->keys[k].key);
+        for (int v = 0; v < p->keys[k].nval; v++) free(p->keys[k].val[v]);
+        free(p->keys[k].val);
+    }
+    if (from_list) /* list values are owned by the runs (one copy per line, shared by repeats) */
+        for (int i = 0; i < p->nruns; i++)
+            if (p->runs[i].repeat == 0)
+                for (int k = 0; k < MAX_KEYS; k++) free(p->runs[i].val[k]);
+    free(p->runs);
+}
+
+/* Under mpirun: the launcher's environment says so (OpenMPI, MPICH/PMI, PMIx). */
+static int under_mpi(void)
+{
+    return getenv("OMPI_COMM_WORLD_SIZE") || getenv("PMI_SIZE") || getenv("PMIX_RANK");
+}
+
+int cli_sweep(int argc, char **argv)
+{
+    sweep_args a;
+    int prc = parse_args(argc, argv, &a);
+    if (prc) return prc == 1 ? 0 : 2;
+    sweep_plan p;
+    int rc = build_plan(&a, &p);
+    if (rc) {
+        plan_free(&p, a.list != NULL);
+        return rc;
+    }
+    for (int i = 0; i < p.nruns && rc == 0; i++) { /* every run's scene loads: bad input first */
+        stf_scene *sc;
+        if (p.runs[i].repeat > 0) continue;
+        rc = check_run(&a, &p, i, &sc);
+        if (rc == 0) stf_scene_free(sc);
+    }
+    int rank = 0, size = 1, local = 1;
+#ifdef STF_HAVE_MPI
+    int mpi = under_mpi();
+    if (mpi) {
+        MPI_Init(NULL, NULL);
+        MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+        MPI_Comm_size(MPI_COMM_WORLD, &size);
+        MPI_Comm node;
+        MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, rank, MPI_INFO_NULL, &node);
+        MPI_Comm_size(node, &local);
+        MPI_Comm_free(&node);
+    }
+#else
+    if (under_mpi()) {
+        fprintf(stderr, "stf sweep: started by mpirun, but this stf was built without MPI "
+                        "(install libopenmpi-dev and rebuild): exiting\n");
+        rc = 2;
+    }
+#endif
+    if (rc == 0 && rank == 0) {
+        if (mkdir(a.dir, 0755) != 0 && errno != EEXIST) {
+            fprintf(stderr, "stf sweep: cannot make %s: %s\n", a.dir, strerror(errno));
+            rc = 2;
+        } else rc = write_plan(&a, &p);
+    }
+#ifdef STF_HAVE_MPI
+    if (mpi) MPI_Bcast(&rc, 1, MPI_INT, 0, MPI_COMM_WORLD);
+#endif
+    if (rc) {
+#ifdef STF_HAVE_MPI
+        if (mpi) MPI_Finalize();
+#endif
+        plan_free(&p, a.list != NULL);
+        return rc;
+    }
+    int procs = omp_get_num_procs();
+    int *todo = malloc((size_t)p.nruns * sizeof *todo + 1), ntodo = 0;
+    if (!todo) abort();
+    for (int i = rank; i < p.nruns; i += size) {
+        char path[4096];
+        snprintf(path, sizeof path, "%s/run_%04d.h5", a.dir, i);
+        if (done(file_status(path))) continue;
+        todo[ntodo++] = i;
+    }
+    if (!a.quiet && size == 1)
+        fprintf(stderr, "stf sweep: %d runs, %d to do (%d already done)\n", p.nruns, ntodo, p.nruns - ntodo);
+    struct sigaction sa; /* no SA_RESTART: a signal wakes waitpid() */
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_signal;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+    if (size == 1) {
+        int jobs = a.jobs ? a.jobs : procs;
+        if (jobs > ntodo) jobs = ntodo > 0 ? ntodo : 1;
+        int threads = a.threads ? a.threads : (procs / jobs > 1 ? procs / jobs : 1);
+        rc = run_local(&a, &p, todo, ntodo, jobs, threads);
+    } else {
+        /* this rank's share of the node's cores; the runs in-process, one after the other */
+        int threads = a.threads ? a.threads : (procs / local > 1 ? procs / local : 1);
+        char who[32];
+        snprintf(who, sizeof who, " (rank %d)", rank);
+        for (int t = 0; t < ntodo && !stop_sweep; t++) {
+            char out[4096], *rargv[2 * (MAX_FIXED + MAX_KEYS) + 16];
+            int n = run_argv(&a, &p, todo[t], threads, out, sizeof out, rargv);
+            int st = cli_run(n, rargv, 0);
+            say_run(&a, &p, todo[t], st, who);
+            if (st == 130) stop_sweep = SIGINT;
+            else if (!done(st) && rc == 0) rc = 2;
+        }
+        if (stop_sweep && rc == 0) rc = 130;
+    }
+    free(todo);
+#ifdef STF_HAVE_MPI
+    if (mpi) {
+        int all;
+        MPI_Allreduce(&rc, &all, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+        rc = all;
+    }
+#endif
+    if (rank == 0) rc = finish(&a, &p, rc);
+#ifdef STF_HAVE_MPI
+    if (mpi) {
+        MPI_Bcast(&rc, 1, MPI_INT, 0, MPI_COMM_WORLD);
+        MPI_Finalize();
+    }
+#endif
+    plan_free(&p, a.list != NULL);
+    return rc;
+}
