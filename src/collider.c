@@ -210,6 +210,24 @@ double collider_sdf(const collider *c, const double x[3], double n[3])
     return d;
 }
 
+int collider_container_faces(const collider *c, const double x[3], double d[5], double n[5][3])
+{
+    if (c->def.shape != STF_SHAPE_CONTAINER) return 0;
+    double p[3];
+    to_local(c, x, p);
+    const double *half = c->def.half;
+    double wall = c->def.wall;
+    if (!(fabs(p[0]) <= half[0] + wall && fabs(p[1]) <= half[1] + wall && p[2] >= -wall &&
+          p[2] <= 2.0 * half[2]))
+        return 0;
+    static const double nl[5][3] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}};
+    d[0] = p[0] + half[0], d[1] = half[0] - p[0];
+    d[2] = p[1] + half[1], d[3] = half[1] - p[1];
+    d[4] = p[2];
+    for (int k = 0; k < 5; k++) to_world_dir(c, nl[k], n[k]);
+    return 5;
+}
+
 void collider_velocity_at(const collider *c, const double x[3], double v[3])
 {
     double r[3] = {x[0] - c->pos[0], x[1] - c->pos[1], x[2] - c->pos[2]};

@@ -23,6 +23,10 @@ void collider_free(collider *c);
 /* Signed distance from x to the surface (m, > 0 outside the solid, may be a large positive
  * number when far) and the unit normal pointing out of the solid. */
 double collider_sdf(const collider *c, const double x[3], double n[3]);
+/* A container's five inner faces (4 walls, floor) as planes: their signed distances from x
+ * (m, > 0 inside) and inward unit normals. Returns 5, or 0 when c is not a container or x is
+ * outside its shell. */
+int collider_container_faces(const collider *c, const double x[3], double d[5], double n[5][3]);
 /* Velocity of the collider's material at world point x. */
 void collider_velocity_at(const collider *c, const double x[3], double v[3]);
 /* Adds the per-particle impulses imp (3n, N s, on the particles at positions x) to the

@@ -37,15 +37,18 @@
  *   so I - dt (viscous operator) is symmetric positive definite and CG applies. For the
  *   plane shear flows of the tests it is exact: div(mu grad v) = div(mu D) there.
  * - The projection is Jacobi with the full k_i of Eq. 21 (no relaxation), from zero
- *   pressure each step, as Algorithm 1.
+ *   pressure each step, as Algorithm 1, unless the scene asks for relaxation and warm_start
+ *   (see pressure_project); cfl splits a step into CFL-limited substeps (cy_step).
  * - Walls (any collider: container, ODE bodies) are a half-space of lattice particles at
  *   rest density that move with the solid (tabulated by distance, as the Clavet model's
  *   mirror particles in pressure.c): they add to density and S_i, take part in the
  *   projection with the particle's own k_i, in the strain rate with the solid's velocity, and
  *   in the viscous force with Morris' mirror velocity (zero relative velocity on the surface:
  *   no slip). Every velocity change they cause is an impulse the collider receives back,
- *   which is how ODE bodies feel buoyancy and drag. Where two walls meet, both count
- *   (the corner's lattice twice).
+ *   which is how ODE bodies feel buoyancy and drag. Where two colliders meet, both count
+ *   (the corner's lattice twice); a container's own faces count one by one, with the
+ *   quarter-space behind each edge subtracted once (the triple corner's octant is then
+ *   missing once: at least 0.87 h from a particle, a small term).
  */
 #include "cy.h"
 
@@ -71,14 +74,22 @@ typedef struct cy_state {
     double *nu;          /* n: kinematic viscosity of the step, m^2/s */
     double *vel;         /* 3n: v** */
     double *b, *dv, *r, *p, *Ap; /* 3n each: viscosity solve */
-    double *lap;         /* cap * stride: m (r.grad W)/(r^2 + 0.01 h^2) per pair, kg/m^5 */
+    float *lap;          /* cap * stride: m (r.grad W)/(r^2 + 0.01 h^2) per pair, kg/m^5 (float:
+                            the pair arrays are read every pass, so their size is the cost) */
     double wall_lap[WALL_BINS + 1]; /* the same summed over a wall's lattice, with Morris'
                                        mirror velocity (see tables), by distance */
+    /* The quarter-space behind two perpendicular faces of a container, by the distances to
+       the two faces (d1, d2): counted by both faces' half-spaces, so subtracted once */
+    double quad_rho[WALL_BINS + 1][WALL_BINS + 1];
+    double quad_g1[WALL_BINS + 1][WALL_BINS + 1]; /* gradient sum along face 1's normal */
+    double quad_g2[WALL_BINS + 1][WALL_BINS + 1];
+    double quad_lap[WALL_BINS + 1][WALL_BINS + 1];
     double *lw;          /* n: sum over walls of wall_lap */
     double *lwv;         /* 3n: sum over walls of wall_lap * v_wall */
-    double *grad;        /* 3 * cap * stride: grad W_ij of each neighbour pair, 1/m^4 */
+    float *grad;         /* 3 * cap * stride: grad W_ij of each neighbour pair, 1/m^4 (float) */
     size_t grad_cap;
     char *hit;
+    int warm_n;          /* particles ktot holds the last step's totals of (0: none) */
     stf_solver_stats stats;
 } cy_state;
 
@@ -145,6 +156,13 @@ int cy_check_def(const stf_fluid_def *d, char *err, size_t errlen)
     if (!(c->cg_tolerance > 0 && c->cg_tolerance < 1))
         FAIL("cg_tolerance: must be in (0,1) (got %g)", c->cg_tolerance);
     if (c->max_cg_iterations < 1) FAIL("max_cg_iterations: must be >= 1 (got %d)", c->max_cg_iterations);
+    if (!(c->warm_start >= 0 && c->warm_start <= 1))
+        FAIL("warm_start: must be in [0,1] (got %g)", c->warm_start);
+    if (!(c->relaxation >= 0 && c->relaxation <= 1))
+        FAIL("relaxation: must be in (0,1], or 0 for 1 (got %g)", c->relaxation);
+    if (!(c->dt_max >= 0 && isfinite(c->dt_max))) FAIL("dt_max: must be >= 0 s (got %g)", c->dt_max);
+    if (c->dt_max > 0 && !(c->cfl > 0)) FAIL("dt_max: only with cfl");
+    if (!(c->cfl >= 0 && c->cfl < 1)) FAIL("cfl: must be in (0,1), or 0 for off (got %g)", c->cfl);
     double h = d->h > 0 ? d->h : 2 * d->spacing;
     for (int a = 0; a < 3; a++) {
         if (!(d->periodic[a] >= 0 && isfinite(d->periodic[a])))
@@ -200,6 +218,45 @@ static void tables(stf_fluid *f, cy_state *c)
         c->wall_rho[bin] = rho;
         c->wall_grad[bin] = grad;
     }
+    for (int b1 = 0; b1 <= WALL_BINS; b1++)
+        for (int b2 = 0; b2 <= WALL_BINS; b2++) {
+            double d1 = h * b1 / WALL_BINS, d2 = h * b2 / WALL_BINS;
+            double rho = 0, g1 = 0, g2 = 0, lap = 0;
+            for (int l1 = 0; l1 <= k; l1++)
+                for (int l2 = 0; l2 <= k; l2++)
+                    for (int a = -k; a <= k; a++) {
+                        double z1 = d1 + s * (0.5 + l1), z2 = d2 + s * (0.5 + l2), e = a * s;
+                        double r = sqrt(z1 * z1 + z2 * z2 + e * e);
+                        if (r >= h) continue;
+                        rho += m * kernel_w(r, h);
+                        g1 += -m * kernel_dw(r, h) * z1 / r;
+                        g2 += -m * kernel_dw(r, h) * z2 / r;
+                        /* mirror velocity ratio at its cap (the corner is deep in the solid) */
+                        lap += m * kernel_dw(r, h) * r / (r * r + 0.01 * h * h) * 2.5;
+                    }
+            c->quad_rho[b1][b2] = rho;
+            c->quad_g1[b1][b2] = g1;
+            c->quad_g2[b1][b2] = g2;
+            c->quad_lap[b1][b2] = lap;
+        }
+}
+
+/* The quarter-space terms at distances d1, d2 (< h) from two perpendicular faces (bilinear). */
+static void quad_at(const cy_state *c, double d1, double d2, double h, double *rho, double *g1,
+                    double *g2, double *lap)
+{
+    double u = d1 / h * WALL_BINS, w = d2 / h * WALL_BINS;
+    u = u < 0 ? 0 : u > WALL_BINS - 1e-9 ? WALL_BINS - 1e-9 : u;
+    w = w < 0 ? 0 : w > WALL_BINS - 1e-9 ? WALL_BINS - 1e-9 : w;
+    int i = (int)u, j = (int)w;
+    double t = u - i, q = w - j;
+    double c00 = (1 - t) * (1 - q), c10 = t * (1 - q), c01 = (1 - t) * q, c11 = t * q;
+#define BILIN(T) (c00 * c->T[i][j] + c10 * c->T[i + 1][j] + c01 * c->T[i][j + 1] + c11 * c->T[i + 1][j + 1])
+    *rho = BILIN(quad_rho);
+    *g1 = BILIN(quad_g1);
+    *g2 = BILIN(quad_g2);
+    *lap = BILIN(quad_lap);
+#undef BILIN
 }
 
 int cy_create(stf_fluid *f)
@@ -244,7 +301,12 @@ static int reserve(stf_fluid *f, int n)
     cy_state *c = f->cy;
     size_t pairs = (size_t)n * (size_t)f->grid.stride * 3;
     if (pairs > c->grad_cap) {
-        if (grow(&c->grad, pairs) || grow(&c->lap, pairs / 3)) return -1;
+        float *g = realloc(c->grad, pairs * sizeof *g);
+        if (!g) return -1;
+        c->grad = g;
+        float *l = realloc(c->lap, pairs / 3 * sizeof *l);
+        if (!l) return -1;
+        c->lap = l;
         c->grad_cap = pairs;
     }
     c->stride = f->grid.stride;
@@ -282,7 +344,10 @@ static void wall_at(const cy_state *c, double d, double h, double *rho, double *
 }
 
 /* Collider k's wall term at particle i: returns 1 within h, with G = sum_b m grad W_ib
- * (pointing into the solid), the density it adds and the solid's velocity there. */
+ * (pointing into the solid), the density it adds and the solid's velocity there. A container
+ * counts as its five faces, each a half-space of lattice (its signed distance alone would
+ * show a particle near an edge only the nearer face: too little density there, and a jump
+ * where the nearer face changes). */
 static int wall_term(const stf_fluid *f, const collider *col, int i, double G[3], double *rho,
                      double *lap, double vb[3])
 {
@@ -293,13 +358,38 @@ static int wall_term(const stf_fluid *f, const collider *col, int i, double G[3]
         for (int a = 0; a < 3; a++) d2 += (x[a] - col->pos[a]) * (x[a] - col->pos[a]);
         if (d2 > (col->bound + h) * (col->bound + h)) return 0;
     }
-    double nrm[3], g;
-    double d = collider_sdf(col, x, nrm);
-    if (d >= h) return 0;
-    wall_at(f->cy, d, h, rho, &g, lap);
-    for (int a = 0; a < 3; a++) G[a] = -g * nrm[a];
-    collider_velocity_at(col, x, vb);
-    return 1;
+    double fd[5], fn[5][3];
+    int faces = collider_container_faces(col, x, fd, fn), hit = 0;
+    if (faces == 0) {
+        double d = collider_sdf(col, x, fn[0]);
+        if (d >= h) return 0;
+        fd[0] = d;
+        faces = 1;
+    }
+    *rho = *lap = 0;
+    G[0] = G[1] = G[2] = 0;
+    for (int k = 0; k < faces; k++) {
+        if (fd[k] >= h) continue;
+        double r, g, l;
+        wall_at(f->cy, fd[k], h, &r, &g, &l);
+        *rho += r;
+        *lap += l;
+        for (int a = 0; a < 3; a++) G[a] -= g * fn[k][a];
+        hit = 1;
+    }
+    /* container edges: faces 0/1 (x) and 2/3 (y) meet each other and the floor (4) */
+    static const int pairs[8][2] = {{0, 2}, {0, 3}, {1, 2}, {1, 3}, {0, 4}, {1, 4}, {2, 4}, {3, 4}};
+    for (int e = 0; faces == 5 && e < 8; e++) {
+        int p = pairs[e][0], q = pairs[e][1];
+        if (fd[p] >= h || fd[q] >= h) continue;
+        double r, g1, g2, l;
+        quad_at(f->cy, fd[p], fd[q], h, &r, &g1, &g2, &l);
+        *rho -= r;
+        *lap -= l;
+        for (int a = 0; a < 3; a++) G[a] += g1 * fn[p][a] + g2 * fn[q][a];
+    }
+    if (hit) collider_velocity_at(col, x, vb);
+    return hit;
 }
 
 static void walls_one(stf_fluid *f, int i)
@@ -335,15 +425,15 @@ static void density_one(stf_fluid *f, int i)
     double h = f->h, m = f->mass, rho = c->rho[i] + m * kernel_w(0, h);
     double sum[3] = {c->gw[3 * i], c->gw[3 * i + 1], c->gw[3 * i + 2]}, sq = 0;
     const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
-    double *gr = c->grad + (size_t)i * c->stride * 3, *lp = c->lap + (size_t)i * c->stride;
+    float *gr = c->grad + (size_t)i * c->stride * 3, *lp = c->lap + (size_t)i * c->stride;
     for (int k = 0; k < f->grid.count[i]; k++) {
         double r[3];
         double len = pair_vec(f, i, nb[k], r);
         rho += m * kernel_w(len, h);
         double s = len > 1e-12 * h ? kernel_dw(len, h) / len : 0;
-        lp[k] = m * s * len * len / (len * len + 0.01 * h * h);
+        lp[k] = (float)(m * s * len * len / (len * len + 0.01 * h * h));
         for (int a = 0; a < 3; a++) {
-            gr[3 * k + a] = s * r[a];
+            gr[3 * k + a] = (float)(s * r[a]);
             sum[a] += m * s * r[a];
         }
         sq += m * m * s * s * len * len;
@@ -360,7 +450,8 @@ static double predict_one(const stf_fluid *f, const double *v, int i, double dt)
     const cy_state *c = f->cy;
     double div = 0, m = f->mass;
     const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
-    const double *gr = c->grad + (size_t)i * c->stride * 3, *vi = v + 3 * i;
+    const float *gr = c->grad + (size_t)i * c->stride * 3;
+    const double *vi = v + 3 * i;
     for (int k = 0; k < f->grid.count[i]; k++) {
         const double *vj = v + 3 * nb[k];
         div += m * ((vi[0] - vj[0]) * gr[3 * k] + (vi[1] - vj[1]) * gr[3 * k + 1] +
@@ -377,7 +468,7 @@ static void pressure_dv_one(const stf_fluid *f, int i, double dt, double *out)
     const cy_state *c = f->cy;
     double m = f->mass, ki = c->kappa[i] / c->rho[i], d[3] = {0, 0, 0};
     const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
-    const double *gr = c->grad + (size_t)i * c->stride * 3;
+    const float *gr = c->grad + (size_t)i * c->stride * 3;
     for (int k = 0; k < f->grid.count[i]; k++) {
         int j = nb[k];
         double w = m * (ki + c->kappa[j] / c->rho[j]);
@@ -412,30 +503,45 @@ static void pressure_apply(stf_fluid *f, double dt)
 }
 
 /* Algorithm 1: k_i from Eq. 21 for every particle (Jacobi), applied together, until the mean
- * compression is below eta and at least min_pressure_iterations were done. Each step starts
- * from zero pressure, as the paper's. (Starting from the last step's pressures and letting a
- * correction lower them was tried: it made a fluid at rest unstable within 0.4 s.) */
+ * compression is below eta and at least min_pressure_iterations were done. The paper starts
+ * each step from zero pressure. With warm_start w > 0 the step first applies w times the
+ * last step's total (a pressure: ktot does not depend on dt, so it carries over a change of
+ * substep length), then the iterations only add pressure where there is compression, as
+ * from zero. The part not carried (1 - w) keeps an over-pressure from persisting; letting
+ * the iterations lower the pressure instead was tried earlier and made a fluid at rest
+ * unstable within 0.4 s. relaxation (omega) scales each iteration's k_i: Jacobi with the full
+ * k_i overshoots where the neighbours are compressed too (their corrections add to the
+ * particle's own), and an overshoot becomes expansion that is not corrected (no tension) and
+ * falls back as a harder compression: at dt = 5 ms the 1 m dam break column blew up from its
+ * floor layer with omega = 1 and ran with omega = 0.5 and warm_start 0.5 (measured). */
 static void pressure_project(stf_fluid *f, double dt)
 {
     cy_state *c = f->cy;
     int n = f->n, iter = 0;
-    double err;
+    double err, w = c->warm_n == n ? f->def.cy.warm_start : 0;
+    double omega = f->def.cy.relaxation > 0 ? f->def.cy.relaxation : 1.0;
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) {
+        c->kappa[i] = w * c->ktot[i];
         c->ktot[i] = 0;
-        c->rhostar[i] = predict_one(f, f->v, i, dt);
+    }
+    if (w > 0) pressure_apply(f, dt); /* also predicts rho* */
+    else {
+#pragma omp parallel for schedule(static)
+        for (int i = 0; i < n; i++) c->rhostar[i] = predict_one(f, f->v, i, dt);
     }
     do {
 #pragma omp parallel for schedule(static)
         for (int i = 0; i < n; i++) { /* Eq. 21; only compression is corrected */
             double k = c->S[i] > 0 ? (c->rhostar[i] - c->rho0) * c->rho[i] / (dt * dt * c->S[i]) : 0;
-            c->kappa[i] = k > 0 ? k : 0;
+            c->kappa[i] = k > 0 ? omega * k : 0;
         }
         pressure_apply(f, dt);
         err = mean_error(f);
         iter++;
     } while ((err > f->def.cy.eta || iter < f->def.cy.min_pressure_iterations) &&
              iter < f->def.cy.max_pressure_iterations);
+    c->warm_n = n;
     c->stats.pressure_iterations = iter;
     c->stats.density_error = err;
 }
@@ -449,7 +555,8 @@ static void strain_one(const stf_fluid *f, const double *u, int i, int with_wall
     const cy_state *c = f->cy;
     double L[9] = {0}, m = f->mass;
     const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
-    const double *gr = c->grad + (size_t)i * c->stride * 3, *ui = u + 3 * i;
+    const float *gr = c->grad + (size_t)i * c->stride * 3;
+    const double *ui = u + 3 * i;
     for (int k = 0; k < f->grid.count[i]; k++) {
         const double *uj = u + 3 * nb[k];
         for (int a = 0; a < 3; a++) {
@@ -490,7 +597,8 @@ static void viscous_one(const stf_fluid *f, const double *u, int i, int with_wal
     const cy_state *c = f->cy;
     double a[3] = {0, 0, 0}, mi = c->rho[i] * c->nu[i];
     const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
-    const double *lp = c->lap + (size_t)i * c->stride, *ui = u + 3 * i;
+    const float *lp = c->lap + (size_t)i * c->stride;
+    const double *ui = u + 3 * i;
     for (int k = 0; k < f->grid.count[i]; k++) {
         int j = nb[k];
         const double *uj = u + 3 * j;
@@ -524,6 +632,14 @@ static void viscosity_field(stf_fluid *f, const double *v)
 {
     cy_state *c = f->cy;
     int n = f->n;
+    const stf_cy_def *cd = &f->def.cy;
+    if (cd->n == 1 || cd->K == 0 || cd->mu0 == cd->mu_inf) { /* Eq. 3 is constant: Newtonian */
+        double nu = stf_cy_viscosity(cd, 0);
+#pragma omp parallel for schedule(static)
+        for (int i = 0; i < n; i++) c->nu[i] = nu;
+        c->stats.min_viscosity = c->stats.max_viscosity = nu;
+        return;
+    }
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) {
         strain_one(f, v, i, 1, c->D);
@@ -631,16 +747,23 @@ static void wrap_positions(stf_fluid *f)
     }
 }
 
-int cy_step(stf_fluid *f, double dt)
+static int cy_substep(stf_fluid *f, double dt)
 {
     cy_state *c = f->cy;
     int n = f->n;
     double t0 = omp_get_wtime();
-    if (grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
-    if (f->steps % f->reorder_interval == 0) {
-        if (fluid_permute(f, f->grid.order) != 0 || grid_build(&f->grid, f->x, n, f->h) != 0)
-            goto oom;
+    /* Particles are re-sorted by cell (memory locality) when the neighbour candidates are
+       rebuilt anyway, at most every reorder_interval steps, as in stf_fluid_step. */
+    if (grid_due(&f->grid, f->x, n, f->h) && f->steps >= f->next_reorder) {
+        if (grid_sort(&f->grid, f->x, n, f->h) != 0) goto oom;
+        if (c->warm_n == n) { /* the warm start's pressures follow their particles */
+            for (int i = 0; i < n; i++) c->kappa[i] = c->ktot[f->grid.order[i]];
+            memcpy(c->ktot, c->kappa, (size_t)n * sizeof *c->ktot);
+        }
+        if (fluid_permute(f, f->grid.order) != 0) goto oom;
+        f->next_reorder = f->steps + f->reorder_interval;
     }
+    if (grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
     if (reserve(f, n) != 0) goto oom;
     f->stage_seconds[STAGE_GRID] += omp_get_wtime() - t0;
     t0 = omp_get_wtime();
@@ -687,6 +810,64 @@ oom:
     return -1;
 }
 
+/* Largest particle speed, m/s (a max: the same for any thread count). */
+static double max_speed(const stf_fluid *f)
+{
+    double v2 = 0;
+#pragma omp parallel for schedule(static) reduction(max : v2)
+    for (int i = 0; i < f->n; i++) {
+        const double *v = f->v + 3 * i;
+        double s = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+        v2 = s > v2 ? s : v2;
+    }
+    return sqrt(v2);
+}
+
+/* One coupled step of length dt: a single substep, or with cfl > 0 substeps of equal length
+ * within dt whose count is set, at each substep's start, by the CFL condition
+ * dt_sub <= min(dt_max, cfl h / v_max) on the remaining time (so the last one is not a
+ * sliver). The
+ * colliders' impulses add up over the substeps (they were cleared by stf_fluid_step). */
+int cy_step(stf_fluid *f, double dt)
+{
+    cy_state *c = f->cy;
+    stf_solver_stats *st = &c->stats;
+    double cfl = f->def.cy.cfl, left = dt, t_end = f->time + dt;
+    st->substeps = 0;
+    st->dt_min = dt;
+    st->dt_max = 0;
+    st->cfl_number = 0;
+    st->pressure_iterations_total = 0;
+    st->density_error_sum = st->density_error_max = 0;
+    while (left > 1e-9 * dt) {
+        double sub = left, vmax = max_speed(f);
+        if (cfl > 0) {
+            double most = f->def.cy.dt_max > 0 ? f->def.cy.dt_max : left;
+            if (vmax * most > cfl * f->h) most = cfl * f->h / vmax;
+            if (most < left) sub = left / ceil(left / most * (1 - 1e-12));
+        }
+        f->dt_now = sub;
+        /* Verlet skin: the default (0.25 h) when the lists can last two substeps or more;
+           else they are rebuilt every substep anyway, and a thin skin (0.02 h) halves the
+           candidates to search and filter */
+        f->grid.skin = 4 * vmax * sub > 0.25 * f->h ? 0.02 : 0;
+        if (cy_substep(f, sub) != 0) return -1;
+        st->substeps++;
+        st->dt_min = sub < st->dt_min ? sub : st->dt_min;
+        st->dt_max = sub > st->dt_max ? sub : st->dt_max;
+        double cn = vmax * sub / f->h;
+        st->cfl_number = cn > st->cfl_number ? cn : st->cfl_number;
+        st->pressure_iterations_total += st->pressure_iterations;
+        st->density_error_sum += st->density_error;
+        st->density_error_max = st->density_error > st->density_error_max ? st->density_error
+                                                                          : st->density_error_max;
+        left -= sub;
+    }
+    f->time = t_end; /* no round-off drift from the substeps */
+    f->dt_now = dt;
+    return 0;
+}
+
 /* -------------------------------------------------------------------------- access */
 
 void stf_fluid_solver_stats(const stf_fluid *f, stf_solver_stats *st)
@@ -712,9 +893,11 @@ int cy_describe(const stf_fluid *f, char *buf, size_t len)
                     "K: %.9g  # s\nalpha: %.9g\nn: %.9g\neta: %.9g\n"
                     "min_pressure_iterations: %d\nmax_pressure_iterations: %d\n"
                     "viscosity_solver: %s\ncg_tolerance: %.9g\nmax_cg_iterations: %d\n"
+                    "cfl: %.9g\ndt_max: %.9g  # s\nwarm_start: %.9g\nrelaxation: %.9g\n"
                     "rest_density_cy: %.9g  # kg/m^3, kernel sum of the lattice\n",
                     c->mu0, c->mu_inf, c->K, c->alpha, c->n, c->eta, c->min_pressure_iterations,
                     c->max_pressure_iterations,
                     c->viscosity_solver == STF_VISCOSITY_EXPLICIT ? "explicit" : "implicit",
-                    c->cg_tolerance, c->max_cg_iterations, f->cy ? f->cy->rho0 : 0.0);
+                    c->cg_tolerance, c->max_cg_iterations, c->cfl, c->dt_max, c->warm_start,
+                    c->relaxation > 0 ? c->relaxation : 1.0, f->cy ? f->cy->rho0 : 0.0);
 }

@@ -143,7 +143,8 @@ static int find_candidates(const stf_grid *g, const double *x, int i, double h2)
 /* Candidate lists within h + skin, and the reference positions. */
 static int rebuild(stf_grid *g, const double *x, int n, double h)
 {
-    double rc = h * (1.0 + SKIN);
+    g->skin_used = g->skin > 0 ? g->skin : SKIN;
+    double rc = h * (1.0 + g->skin_used);
     g->cell = rc;
     if (sort_by_bucket(g, x, n) != 0) return -1;
     for (;;) {
@@ -202,7 +203,7 @@ static int filter_one(stf_grid *g, const double *x, int i, double h2)
 
 int grid_due(stf_grid *g, const double *x, int n, double h)
 {
-    double skin = SKIN * h;
+    double skin = g->skin_used * h;
     if (g->valid && (n != g->nref || h != g->href || 4.0 * max_moved2(g, x, n) > skin * skin))
         g->valid = 0;
     return !g->valid;

@@ -33,6 +33,10 @@ typedef struct stf_grid {
     double href;       /* h at the last rebuild, m */
     int valid;         /* 0: rebuild the candidates at the next grid_build (set on reorder) */
     long rebuilds, builds; /* statistics */
+    double skin;       /* Verlet skin, fraction of h, set by the owner (0: the default 0.25);
+                          a flow that moves more than skin/2 every step rebuilds every step,
+                          and then a thin skin costs less */
+    double skin_used;  /* the skin of the current candidate lists */
     /* Periodic axes (set by the owner before building; zero: not periodic): along axis a
        with period[a] > 0 (>= 3 cells) cells wrap with that period from origin[a], and
        neighbours are found by the nearest image. */

@@ -521,7 +521,11 @@ static int parse_carreau_yasuda(loader *L, const mapv *p)
         get_num(L, p, "mu_inf", R_NONNEG, &c->mu_inf) < 0 ||
         get_num(L, p, "K", R_NONNEG, &c->K) < 0 || get_num(L, p, "alpha", R_POS, &c->alpha) < 0 ||
         get_num(L, p, "n", R_POS, &c->n) < 0 || get_num(L, p, "eta", R_OPEN_UNIT, &c->eta) < 0 ||
-        get_num(L, p, "cg_tolerance", R_OPEN_UNIT, &c->cg_tolerance) < 0)
+        get_num(L, p, "cg_tolerance", R_OPEN_UNIT, &c->cg_tolerance) < 0 ||
+        get_num(L, p, "cfl", R_OPEN_UNIT, &c->cfl) < 0 ||
+        get_num(L, p, "dt_max", R_NONNEG, &c->dt_max) < 0 ||
+        get_num(L, p, "warm_start", R_UNIT, &c->warm_start) < 0 ||
+        get_num(L, p, "relaxation", R_UNIT, &c->relaxation) < 0)
         return SCENE_BAD;
     if ((r = get_int(L, p, "min_pressure_iterations", 1, 10000, &it)) < 0) return SCENE_BAD;
     if (r) c->min_pressure_iterations = (int)it;
@@ -576,7 +580,7 @@ static const char *const stick_keys[] = {"stick", NULL};
 static const char *const cy_keys[] = {"mu0", "mu_inf", "K", "alpha", "n", "eta",
                                       "min_pressure_iterations", "max_pressure_iterations",
                                       "viscosity_solver", "cg_tolerance", "max_cg_iterations",
-                                      NULL};
+                                      "cfl", "dt_max", "warm_start", "relaxation", NULL};
 
 static int parse_effects(loader *L, const mapv *top)
 {

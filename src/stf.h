@@ -71,6 +71,17 @@ typedef struct stf_cy_def {
     int viscosity_solver;  /* enum stf_viscosity_solver */
     double cg_tolerance;   /* implicit viscosity: stop at |residual| <= tol |rhs| (> 0) */
     int max_cg_iterations; /* >= 1 */
+    double cfl;            /* 0: one step of the given dt; in (0,1): CFL-adaptive substeps of
+                              length dt_sub = min(dt, cfl h / v_max), v_max the largest particle
+                              speed at the substep's start, dimensionless (Courant number) */
+    double dt_max;         /* s, >= 0: with cfl, the longest substep (0: the step's dt); a
+                              coupled step longer than the CFL substep then splits into
+                              nearly equal substeps instead of, e.g., two halves */
+    double warm_start;     /* [0,1]: the pressure projection starts from this fraction of the
+                              last step's pressure (0: from zero, the paper's); the iterations
+                              then only add pressure, dimensionless */
+    double relaxation;     /* (0,1]: each Jacobi iteration applies this fraction of the k_i of
+                              Eq. 21 (0 means 1, the paper's), dimensionless */
 } stf_cy_def;
 
 /* What the Carreau-Yasuda solver did in the last step (zeros for the Clavet model). */
@@ -82,6 +93,13 @@ typedef struct stf_solver_stats {
     double viscosity_residual;/* final |residual| / |rhs| of the viscosity solve */
     double max_viscosity;     /* largest kinematic viscosity of a particle, m^2/s */
     double min_viscosity;     /* smallest, m^2/s */
+    /* over the substeps of the last stf_fluid_step (one without cfl) */
+    int substeps;             /* substeps taken */
+    double dt_min, dt_max;    /* shortest and longest substep, s */
+    double cfl_number;        /* largest v_max dt_sub / h of a substep, dimensionless */
+    long pressure_iterations_total; /* summed over the substeps */
+    double density_error_sum; /* final mean density error summed over the substeps, fraction */
+    double density_error_max; /* largest of them, fraction */
 } stf_solver_stats;
 
 typedef struct stf_fluid_def {

@@ -38,6 +38,12 @@ bad neg_n "^neg_n.yaml:$line:[0-9]+: effects.carreau_yasuda.n: must be > 0" neg_
 sed 's/viscosity_solver: implicit/viscosity_solver: sideways/' "$SC/cy_collapse_thickening.yaml" >bad_solver.yaml
 line=$(grep -n -m1 'viscosity_solver: sideways' bad_solver.yaml | cut -d: -f1)
 bad bad_solver "^bad_solver.yaml:$line:[0-9]+: effects.carreau_yasuda.viscosity_solver: expected one of: implicit, explicit" bad_solver.yaml
+sed 's/cfl: 0.5,/cfl: 1.5,/' "$SC/dam_break_3d.yaml" >bad_cfl.yaml
+line=$(grep -n -m1 'cfl: 1.5' bad_cfl.yaml | cut -d: -f1)
+bad bad_cfl "^bad_cfl.yaml:$line:[0-9]+: effects.carreau_yasuda.cfl: " bad_cfl.yaml
+sed 's/dt_max: 0.005,/dt_max: -1,/' "$SC/dam_break_3d.yaml" >bad_dtmax.yaml
+line=$(grep -n -m1 'dt_max: -1' bad_dtmax.yaml | cut -d: -f1)
+bad bad_dtmax "^bad_dtmax.yaml:$line:[0-9]+: effects.carreau_yasuda.dt_max: " bad_dtmax.yaml
 sed 's/  gravity: {g: \[0, 0, -9.81\]}/  gravity: {g: [0, 0, -9.81]}\n  pressure: {k: 1000}/' "$SC/cy_falling_column.yaml" >mixed.yaml
 line=$(grep -n -m1 '  pressure:' mixed.yaml | cut -d: -f1)
 bad mixed "^mixed.yaml:$line:3: effects.pressure: not part of fluid.model carreau_yasuda" mixed.yaml

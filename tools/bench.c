@@ -5,6 +5,9 @@
  *                                      on the bowling ball and a vibrated layer, ~20K particles
  *   stf bench effects SCENE           cost of each effect, turning them off one at a time
  *   stf bench accuracy SCENE          error vs wall time for dt, spacing and the history mode
+ *   stf bench dam SCENE               Carreau-Yasuda solver speed (issue 8): wall and steps per
+ *                                      simulated second, pressure iterations, density error,
+ *                                      peak memory, for 1 and 2 threads (--duration, 0.2 s)
  *
  * Timings run the simulation in this process (no output file); the accuracy runs are
  * ordinary `stf run` child processes of this executable, whose output files are read back
@@ -63,8 +66,8 @@ static int parse(int argc, char **argv, bench_args *a)
     if (argc < 1) return bad("needs one of table1, effects, accuracy; got", "");
     a->what = argv[0];
     if (strcmp(a->what, "table1") && strcmp(a->what, "effects") && strcmp(a->what, "accuracy") &&
-        strcmp(a->what, "scaling"))
-        return bad("unknown benchmark (allowed: table1, effects, accuracy, scaling):", a->what);
+        strcmp(a->what, "scaling") && strcmp(a->what, "dam"))
+        return bad("unknown benchmark (allowed: table1, effects, accuracy, scaling, dam):", a->what);
     for (int i = 1; i < argc; i++) {
         const char *s = argv[i];
         int more = i + 1 < argc;
@@ -776,6 +779,90 @@ static int bench_accuracy(const bench_args *a, const char *self)
     return 0;
 }
 
+/* ------------------------------------------------------------------------------ dam */
+
+/* The Carreau-Yasuda solver on a scene for `duration` simulated seconds with `threads`
+ * threads: one row of the issue 8 table. Returns 0, 2 bad scene, 3 numerical failure. */
+static int dam_row(const bench_args *a, double duration, int threads)
+{
+    char err[2048];
+    stf_scene *sc;
+    if (stf_scene_load(a->scene, a->ov, a->nov, &sc, err, sizeof err) != 0) {
+        fprintf(stderr, "%s\n", err);
+        return 2;
+    }
+    if (sc->fluid.model != STF_MODEL_CARREAU_YASUDA) {
+        fprintf(stderr, "stf bench dam: %s: needs fluid.model: carreau_yasuda\n", a->scene);
+        stf_scene_free(sc);
+        return 2;
+    }
+    stf_set_threads(threads);
+    stf_sim *sim;
+    if (stf_sim_create(sc, &sim, err, sizeof err) != 0) {
+        fprintf(stderr, "%s\n", err);
+        stf_scene_free(sc);
+        return 2;
+    }
+    long steps = lround(duration / sc->dt), substeps = 0, iters = 0;
+    double err_sum = 0, err_max = 0, dt_min = sc->dt, dt_max = 0, cfl = 0;
+    int rc = 0;
+    long rebuilds0 = sim->fluid->grid.rebuilds;
+    double t0 = omp_get_wtime(), c0 = cpu_seconds();
+    for (long s = 0; s < steps && rc == 0; s++) {
+        rc = stf_sim_step(sim);
+        stf_solver_stats st;
+        stf_fluid_solver_stats(sim->fluid, &st);
+        substeps += st.substeps;
+        iters += st.pressure_iterations_total;
+        err_sum += st.density_error_sum;
+        err_max = st.density_error_max > err_max ? st.density_error_max : err_max;
+        dt_min = st.dt_min < dt_min ? st.dt_min : dt_min;
+        dt_max = st.dt_max > dt_max ? st.dt_max : dt_max;
+        cfl = st.cfl_number > cfl ? st.cfl_number : cfl;
+    }
+    double wall = omp_get_wtime() - t0, cpu = cpu_seconds() - c0, T = steps * sc->dt;
+    if (rc != 0) {
+        fprintf(stderr, "stf bench dam: numerical failure: %s\n", stf_fluid_failure(sim->fluid));
+        rc = 3;
+    } else {
+        struct rusage ru;
+        getrusage(RUSAGE_SELF, &ru);
+        printf("%7d %8d %10.2f %10.2f %9.1f %8.2f %8.2f %9.3f %9.3f %9.2e %9.2e %7.3f %8.1f %8.2f\n",
+               threads, stf_fluid_count(sim->fluid), wall / T, cpu / T, substeps / T,
+               1e3 * wall / (double)substeps, (double)iters / (double)substeps,
+               100 * err_sum / (double)substeps, 100 * err_max, dt_min, dt_max, cfl,
+               ru.ru_maxrss / 1024.0,
+               (double)(sim->fluid->grid.rebuilds - rebuilds0) / (double)substeps);
+        fflush(stdout);
+    }
+    stf_sim_destroy(sim);
+    stf_scene_free(sc);
+    return rc;
+}
+
+static int bench_dam(const bench_args *a)
+{
+    double duration = a->duration > 0 ? a->duration : 0.2;
+    printf("# stf bench dam %s: %.3g simulated s from rest (--duration)\n", a->scene, duration);
+    print_load();
+    printf("%7s %8s %10s %10s %9s %8s %8s %9s %9s %9s %9s %7s %8s %8s\n", "threads", "n",
+           "wall s/s", "cpu s/s", "steps/s", "ms/step", "p.iter", "err mean%", "err max%",
+           "dt min s", "dt max s", "cfl", "maxrss MB", "rebuilds");
+    int counts[2] = {1, 2}, nc = 2;
+    if (a->threads) counts[0] = a->threads, nc = 1;
+    for (int k = 0; k < nc; k++) {
+        int rc = dam_row(a, duration, counts[k]);
+        if (rc) return rc;
+    }
+    print_load();
+    printf("# wall s/s: wall seconds per simulated second; steps/s: solver substeps per simulated "
+           "second; p.iter: pressure iterations per substep; err: mean compression after the "
+           "projection (mean over substeps, and the largest); cfl: largest v_max dt / h; maxrss: "
+           "peak resident memory of this process so far (getrusage); rebuilds: neighbour "
+           "candidate rebuilds per substep\n");
+    return 0;
+}
+
 int cli_bench(int argc, char **argv)
 {
     bench_args a;
@@ -784,6 +871,7 @@ int cli_bench(int argc, char **argv)
     if (!strcmp(a.what, "table1")) return bench_table1(&a);
     if (!strcmp(a.what, "effects")) return bench_effects(&a);
     if (!strcmp(a.what, "scaling")) return bench_scaling(&a);
+    if (!strcmp(a.what, "dam")) return bench_dam(&a);
     char self[4096];
     ssize_t len = readlink("/proc/self/exe", self, sizeof self - 1);
     if (len <= 0) return bad("cannot find this executable", "/proc/self/exe");
