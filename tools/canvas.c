@@ -438,3 +438,44 @@ int canvas_tick_decimals(double step)
     int d = (int)ceil(-log10(step) - 1e-9);
     return d < 0 ? 0 : d > 6 ? 6 : d;
 }
+
+void canvas_axes_draw(canvas *c, const canvas_axes *a, int xwant, int ywant, int xnumbers, int ts)
+{
+    static const float ink[3] = {0.10f, 0.10f, 0.12f}, grid[3] = {0.88f, 0.89f, 0.91f};
+    double us = canvas_nice_step(a->u1 - a->u0, xwant), vs = canvas_nice_step(a->v1 - a->v0, ywant);
+    int ud = canvas_tick_decimals(us), vd = canvas_tick_decimals(vs);
+    char buf[48];
+    for (double v = ceil(a->v0 / vs - 1e-9) * vs; v <= a->v1 + vs * 1e-6; v += vs) {
+        double y = canvas_axes_y(a, v);
+        canvas_line(c, a->x0, y, a->x1, y, grid, 1);
+        canvas_line(c, a->x0 - 5, y, a->x0, y, ink, 1.5);
+        snprintf(buf, sizeof buf, "%.*f", vd, fabs(v) < vs * 1e-6 ? 0.0 : v);
+        canvas_text(c, a->x0 - 12 - canvas_text_width(buf, ts), (int)lround(y) - 7, buf, ink, ts);
+    }
+    for (double u = ceil(a->u0 / us - 1e-9) * us; u <= a->u1 + us * 1e-6; u += us) {
+        double x = canvas_axes_x(a, u);
+        canvas_line(c, x, a->y0, x, a->y1, grid, 1);
+        canvas_line(c, x, a->y1, x, a->y1 + 5, ink, 1.5);
+        if (!xnumbers) continue;
+        snprintf(buf, sizeof buf, "%.*f", ud, fabs(u) < us * 1e-6 ? 0.0 : u);
+        canvas_text(c, (int)lround(x) - canvas_text_width(buf, ts) / 2, a->y1 + 13, buf, ink, ts);
+    }
+    canvas_line(c, a->x0, a->y0, a->x1, a->y0, ink, 1.5);
+    canvas_line(c, a->x0, a->y1, a->x1, a->y1, ink, 1.5);
+    canvas_line(c, a->x0, a->y0, a->x0, a->y1, ink, 1.5);
+    canvas_line(c, a->x1, a->y0, a->x1, a->y1, ink, 1.5);
+}
+
+void canvas_nice_range(double *lo, double *hi, int keep_zero)
+{
+    if (!(*hi > *lo)) {
+        double m = fabs(*lo) > 0 ? fabs(*lo) * 0.1 : 0.1;
+        *lo -= m;
+        *hi += m;
+    }
+    double pad = (*hi - *lo) * 0.05;
+    double step = canvas_nice_step(*hi - *lo + 2 * pad, 5);
+    if (keep_zero && *lo == 0) pad = 0;
+    *lo = floor((*lo - pad) / step) * step;
+    *hi = ceil((*hi + pad) / step) * step;
+}

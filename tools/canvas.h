@@ -75,6 +75,28 @@ int canvas_write_png(const canvas *c, const char *path, char *err, size_t errlen
 /* Axis ticks for charts: a 1-2-5 step giving about `want` intervals over range, and the
  * number of decimals that step needs in a label (0..6). */
 double canvas_nice_step(double range, int want);
+
+/* A plot's axes: the pixel box of the plotting area and the data ranges it shows. */
+typedef struct canvas_axes {
+    int x0, y0, x1, y1; /* pixels */
+    double u0, u1;      /* x range */
+    double v0, v1;      /* y range */
+} canvas_axes;
+
+static inline double canvas_axes_x(const canvas_axes *a, double u)
+{
+    return a->x0 + (u - a->u0) / (a->u1 - a->u0) * (a->x1 - a->x0);
+}
+static inline double canvas_axes_y(const canvas_axes *a, double v)
+{
+    return a->y1 - (v - a->v0) / (a->v1 - a->v0) * (a->y1 - a->y0);
+}
+/* Grid lines at about xwant x and ywant y ticks, tick marks, the numbers (x numbers only if
+ * xnumbers) at text scale ts, and the frame around the area. */
+void canvas_axes_draw(canvas *c, const canvas_axes *a, int xwant, int ywant, int xnumbers, int ts);
+/* Widens [lo, hi] by 5% (to a span if empty) and rounds it out to whole ticks of about 5; with
+ * keep_zero, a range starting at 0 stays there. */
+void canvas_nice_range(double *lo, double *hi, int keep_zero);
 int canvas_tick_decimals(double step);
 
 #endif

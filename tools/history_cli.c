@@ -42,7 +42,6 @@ static const char *USAGE =
 #define TS 2 /* text scale */
 
 static const float BLACK[3] = {0.10f, 0.10f, 0.12f};
-static const float GRID[3] = {0.89f, 0.90f, 0.92f};
 static const float WHITE[3] = {1, 1, 1};
 static const float GREY[3] = {0.42f, 0.42f, 0.46f};
 static const float FRAMEC[3] = {0.70f, 0.70f, 0.72f};
@@ -54,14 +53,7 @@ static const float PALETTE[MAXD][3] = {
 
 /* ---------------------------------------------------------------- plotting helpers */
 
-typedef struct frame {
-    int x0, y0, x1, y1; /* pixel box of the plotting area */
-    double a0, a1;      /* x range */
-    double b0, b1;      /* y range */
-} frame;
-
-static double fx(const frame *f, double x) { return f->x0 + (x - f->a0) / (f->a1 - f->a0) * (f->x1 - f->x0); }
-static double fy(const frame *f, double y) { return f->y1 - (y - f->b0) / (f->b1 - f->b0) * (f->y1 - f->y0); }
+typedef canvas_axes frame;
 
 
 /* [0, hi] (or [lo, hi] when lo < 0) rounded out to whole ticks with a little headroom. */
@@ -117,29 +109,9 @@ static void bold_text(canvas *c, int x, int y, const char *s, const float rgb[3]
 static void draw_frame(canvas *c, const frame *f, const char *title, const char *xlabel,
                        const char *ylabel)
 {
-    double xs = canvas_nice_step(f->a1 - f->a0, 8), ys = canvas_nice_step(f->b1 - f->b0, 5);
-    int xd = canvas_tick_decimals(xs), yd = canvas_tick_decimals(ys);
-    char buf[48];
     canvas_rect(c, f->x0, f->y0, f->x1, f->y1, WHITE);
-    for (double v = ceil(f->b0 / ys - 1e-9) * ys; v <= f->b1 + ys * 1e-6; v += ys) {
-        double y = fy(f, v);
-        canvas_line(c, f->x0, y, f->x1, y, GRID, 1);
-        canvas_line(c, f->x0 - 5, y, f->x0, y, BLACK, 1.5);
-        snprintf(buf, sizeof buf, "%.*f", yd, fabs(v) < ys * 1e-6 ? 0.0 : v);
-        canvas_text(c, f->x0 - 10 - canvas_text_width(buf, TS), (int)lround(y) - 7, buf, BLACK, TS);
-    }
-    for (double v = ceil(f->a0 / xs - 1e-9) * xs; v <= f->a1 + xs * 1e-6; v += xs) {
-        double x = fx(f, v);
-        canvas_line(c, x, f->y0, x, f->y1, GRID, 1);
-        canvas_line(c, x, f->y1, x, f->y1 + 5, BLACK, 1.5);
-        snprintf(buf, sizeof buf, "%.*f", xd, fabs(v) < xs * 1e-6 ? 0.0 : v);
-        canvas_text(c, (int)lround(x) - canvas_text_width(buf, TS) / 2, f->y1 + 11, buf, BLACK, TS);
-    }
-    if (f->b0 < 0 && f->b1 > 0) canvas_line(c, f->x0, fy(f, 0), f->x1, fy(f, 0), GREY, 1.2);
-    canvas_line(c, f->x0, f->y0, f->x1, f->y0, BLACK, 1.5);
-    canvas_line(c, f->x0, f->y1, f->x1, f->y1, BLACK, 1.5);
-    canvas_line(c, f->x0, f->y0, f->x0, f->y1, BLACK, 1.5);
-    canvas_line(c, f->x1, f->y0, f->x1, f->y1, BLACK, 1.5);
+    canvas_axes_draw(c, f, 8, 5, 1, TS);
+    if (f->v0 < 0 && f->v1 > 0) canvas_line(c, f->x0, canvas_axes_y(f, 0), f->x1, canvas_axes_y(f, 0), GREY, 1.2);
     if (title) bold_text(c, (f->x0 + f->x1) / 2 - canvas_text_width(title, TS) / 2, f->y0 - 52, title, BLACK, TS);
     if (ylabel) rich_text(c, f->x0 - 60 > 4 ? f->x0 - 60 : 4, f->y0 - 30, ylabel, GREY, TS);
     if (xlabel) rich_text(c, (f->x0 + f->x1) / 2 - rich_width(xlabel, TS) / 2, f->y1 + 34, xlabel, GREY, TS);
@@ -154,7 +126,7 @@ static void draw_curve(canvas *c, const frame *f, const double *x, const double 
     double phase = 0; /* distance into the current dash+gap period */
     for (int i = 1; i < n; i++) {
         if (!isfinite(y[i - 1]) || !isfinite(y[i])) continue;
-        double X0 = fx(f, x[i - 1]), Y0 = fy(f, y[i - 1]), X1 = fx(f, x[i]), Y1 = fy(f, y[i]);
+        double X0 = canvas_axes_x(f, x[i - 1]), Y0 = canvas_axes_y(f, y[i - 1]), X1 = canvas_axes_x(f, x[i]), Y1 = canvas_axes_y(f, y[i]);
         if (!dashed) {
             canvas_line(c, X0, Y0, X1, Y1, rgb, width);
             continue;
@@ -581,13 +553,13 @@ static int figure2(const opts *o)
     }
     draw_legend_row(c, W / 2, 92, it, o->nq);
     frame f = {110, 180, W - 40, H - 80, 0, n, 0, 1};
-    y_range(0, hi, &f.b0, &f.b1);
+    y_range(0, hi, &f.v0, &f.v1);
     draw_frame(c, &f, NULL, "past time step p", "weight a(p, n)");
     for (int j = 0; j < o->nq; j++) {
         const double *wj = w + (size_t)j * (n + 1);
         draw_curve(c, &f, x, wj, n + 1, PALETTE[j % MAXD], 2, 0);
         if (n <= 120)
-            for (int p = 0; p <= n; p++) canvas_circle(c, fx(&f, x[p]), fy(&f, wj[p]), 3.6, PALETTE[j % MAXD]);
+            for (int p = 0; p <= n; p++) canvas_circle(c, canvas_axes_x(&f, x[p]), canvas_axes_y(&f, wj[p]), 3.6, PALETTE[j % MAXD]);
     }
     join(path, sizeof path, o->dir, "fig2_weights.png");
     int rc = write_png(c, path);
@@ -700,7 +672,7 @@ static int figure_stiffness(const opts *o, int which, const profile *p, double d
                 if (p->v[i] < lo) lo = p->v[i];
                 if (p->v[i] > hi) hi = p->v[i];
             }
-            y_range(lo, hi, &f.b0, &f.b1);
+            y_range(lo, hi, &f.v0, &f.v1);
             draw_frame(c, &f, "velocity of particle i", "t (s)", "v (m/s)");
             draw_curve(c, &f, p->t, p->v, n, VELC, 2.6, 0);
             continue;
@@ -712,7 +684,7 @@ static int figure_stiffness(const opts *o, int which, const profile *p, double d
                 double v = k[(size_t)(j * o->nd + e) * n + i];
                 if (v > hi) hi = v;
             }
-        y_range(0, hi, &f.b0, &f.b1);
+        y_range(0, hi, &f.v0, &f.v1);
         snprintf(lab, sizeof lab, "q = %g", o->q[j]);
         draw_frame(c, &f, lab, "t (s)", "stiffness (1/s^2)");
         /* windows from the longest down (solid), then the full history dashed on top */

@@ -16,7 +16,6 @@
 static const char *USAGE = "usage: stf plot OUT.h5 [-o FILE.png] [--body NAME] [--width W] [--height H]";
 
 static const float BLACK[3] = {0.10f, 0.10f, 0.12f};
-static const float GRID[3] = {0.88f, 0.89f, 0.91f};
 static const float WHITE[3] = {1, 1, 1};
 static const float BLUE[3] = {0.12f, 0.35f, 0.75f};
 static const float ORANGE[3] = {0.90f, 0.50f, 0.10f};
@@ -51,54 +50,11 @@ static int series_alloc(series *s, int n)
 
 /* ---------------------------------------------------------------- axes */
 
-typedef struct panel {
-    int x0, y0, x1, y1; /* pixel box of the plotting area */
-    double t0, t1, v0, v1;
-} panel;
-
-static double px(const panel *p, double t) { return p->x0 + (t - p->t0) / (p->t1 - p->t0) * (p->x1 - p->x0); }
-static double py(const panel *p, double v) { return p->y1 - (v - p->v0) / (p->v1 - p->v0) * (p->y1 - p->y0); }
-
-
-/* Expands [lo, hi] a little and to whole ticks. */
-static void nice_range(double *lo, double *hi)
-{
-    if (!(*hi > *lo)) {
-        double m = fabs(*lo) > 0 ? fabs(*lo) * 0.1 : 0.1;
-        *lo -= m;
-        *hi += m;
-    }
-    double pad = (*hi - *lo) * 0.05;
-    double step = canvas_nice_step(*hi - *lo + 2 * pad, 5);
-    *lo = floor((*lo - pad) / step) * step;
-    *hi = ceil((*hi + pad) / step) * step;
-}
+typedef canvas_axes panel;
 
 static void draw_axes(canvas *c, const panel *p, const char *ylabel, int xlabels)
 {
-    double ts = canvas_nice_step(p->t1 - p->t0, 8), vs = canvas_nice_step(p->v1 - p->v0, 5);
-    int td = canvas_tick_decimals(ts), vd = canvas_tick_decimals(vs);
-    char buf[48];
-    for (double v = ceil(p->v0 / vs - 1e-9) * vs; v <= p->v1 + vs * 1e-6; v += vs) {
-        double y = py(p, v);
-        canvas_line(c, p->x0, y, p->x1, y, GRID, 1);
-        snprintf(buf, sizeof buf, "%.*f", vd, fabs(v) < vs * 1e-6 ? 0.0 : v);
-        canvas_text(c, p->x0 - 12 - canvas_text_width(buf, TS), (int)lround(y) - 7, buf, BLACK, TS);
-        canvas_line(c, p->x0 - 5, y, p->x0, y, BLACK, 1.5);
-    }
-    for (double t = ceil(p->t0 / ts - 1e-9) * ts; t <= p->t1 + ts * 1e-6; t += ts) {
-        double x = px(p, t);
-        canvas_line(c, x, p->y0, x, p->y1, GRID, 1);
-        canvas_line(c, x, p->y1, x, p->y1 + 5, BLACK, 1.5);
-        if (xlabels) {
-            snprintf(buf, sizeof buf, "%.*f", td, fabs(t) < ts * 1e-6 ? 0.0 : t);
-            canvas_text(c, (int)lround(x) - canvas_text_width(buf, TS) / 2, p->y1 + 13, buf, BLACK, TS);
-        }
-    }
-    canvas_line(c, p->x0, p->y0, p->x1, p->y0, BLACK, 1.5);
-    canvas_line(c, p->x0, p->y1, p->x1, p->y1, BLACK, 1.5);
-    canvas_line(c, p->x0, p->y0, p->x0, p->y1, BLACK, 1.5);
-    canvas_line(c, p->x1, p->y0, p->x1, p->y1, BLACK, 1.5);
+    canvas_axes_draw(c, p, 8, 5, xlabels, TS);
     canvas_text(c, p->x0, p->y0 - 24, ylabel, BLACK, TS);
 }
 
@@ -107,15 +63,15 @@ static void draw_curve(canvas *c, const panel *p, const double *t, const double 
 {
     for (int i = 1; i < n; i++)
         if (isfinite(v[i - 1]) && isfinite(v[i]))
-            canvas_line(c, px(p, t[i - 1]), py(p, v[i - 1]), px(p, t[i]), py(p, v[i]), rgb, 2.2);
-    if (n == 1 && isfinite(v[0])) canvas_circle(c, px(p, t[0]), py(p, v[0]), 3, rgb);
+            canvas_line(c, canvas_axes_x(p, t[i - 1]), canvas_axes_y(p, v[i - 1]), canvas_axes_x(p, t[i]), canvas_axes_y(p, v[i]), rgb, 2.2);
+    if (n == 1 && isfinite(v[0])) canvas_circle(c, canvas_axes_x(p, t[0]), canvas_axes_y(p, v[0]), 3, rgb);
 }
 
 static void vmark(canvas *c, const panel *top, const panel *bot, double t, const char *label,
                   const float rgb[3], int label_row)
 {
-    if (!isfinite(t) || t < top->t0 || t > top->t1) return;
-    double x = px(top, t);
+    if (!isfinite(t) || t < top->u0 || t > top->u1) return;
+    double x = canvas_axes_x(top, t);
     canvas_line(c, x, top->y0, x, top->y1, rgb, 1.5);
     canvas_line(c, x, bot->y0, x, bot->y1, rgb, 1.5);
     int w = canvas_text_width(label, TS);
@@ -336,15 +292,15 @@ int cli_plot(int argc, char **argv)
     int mid = (top + bottom - gap) / 2;
     panel pz = {left, top, right, mid, s.t[0], s.t[s.n - 1], INFINITY, -INFINITY};
     panel pv = {left, mid + gap, right, bottom, s.t[0], s.t[s.n - 1], INFINITY, -INFINITY};
-    if (!(pz.t1 > pz.t0)) pz.t1 = pv.t1 = pz.t0 + 1;
+    if (!(pz.u1 > pz.u0)) pz.u1 = pv.u1 = pz.u0 + 1;
     minmax(s.z, s.n, &pz.v0, &pz.v1);
     if (isfinite(surface)) minmax(&surface, 1, &pz.v0, &pz.v1);
     minmax(s.vz, s.n, &pv.v0, &pv.v1);
     minmax(s.vh, s.n, &pv.v0, &pv.v1);
     if (!isfinite(pz.v0)) pz.v0 = 0, pz.v1 = 1;
     if (!isfinite(pv.v0)) pv.v0 = 0, pv.v1 = 1;
-    nice_range(&pz.v0, &pz.v1);
-    nice_range(&pv.v0, &pv.v1);
+    canvas_nice_range(&pz.v0, &pz.v1, 0);
+    canvas_nice_range(&pv.v0, &pv.v1, 0);
 
     /* title */
     scene_name = stf_h5r_attr_string(r, "scene_path");
@@ -365,12 +321,12 @@ int cli_plot(int argc, char **argv)
     canvas_text(c, (left + right) / 2 - canvas_text_width(xl, TS) / 2, bottom + 42, xl, BLACK, TS);
 
     if (isfinite(surface) && surface >= pz.v0 && surface <= pz.v1) {
-        double y = py(&pz, surface);
+        double y = canvas_axes_y(&pz, surface);
         canvas_dashed_line(c, pz.x0, y, pz.x1, y, GREEN, 1.8, 10, 6);
         const char *lab = "surface";
         canvas_text_halo(c, pz.x1 - 8 - canvas_text_width(lab, TS), (int)lround(y) - 20, lab, GREEN, WHITE, TS);
     }
-    if (pv.v0 < 0 && pv.v1 > 0) canvas_line(c, pv.x0, py(&pv, 0), pv.x1, py(&pv, 0), GREY, 1.2);
+    if (pv.v0 < 0 && pv.v1 > 0) canvas_line(c, pv.x0, canvas_axes_y(&pv, 0), pv.x1, canvas_axes_y(&pv, 0), GREY, 1.2);
 
     vmark(c, &pz, &pv, t_contact, "contact", RED, 0);
     vmark(c, &pz, &pv, t_sink, "sink", GREY, 1);
@@ -379,8 +335,8 @@ int cli_plot(int argc, char **argv)
     draw_curve(c, &pv, s.t, s.vh, s.n, ORANGE);
     draw_curve(c, &pv, s.t, s.vz, s.n, BLUE);
     for (int i = 0; i < np; i++) {
-        canvas_circle(c, px(&pz, s.t[peaks[i]]), py(&pz, s.z[peaks[i]]), 6, BLACK);
-        canvas_circle(c, px(&pz, s.t[peaks[i]]), py(&pz, s.z[peaks[i]]), 4, ORANGE);
+        canvas_circle(c, canvas_axes_x(&pz, s.t[peaks[i]]), canvas_axes_y(&pz, s.z[peaks[i]]), 6, BLACK);
+        canvas_circle(c, canvas_axes_x(&pz, s.t[peaks[i]]), canvas_axes_y(&pz, s.z[peaks[i]]), 4, ORANGE);
     }
 
     /* legend of the velocity panel (top right inside) */

@@ -12,34 +12,13 @@
 #include "sweep.h"
 
 static const float BLACK[3] = {0.10f, 0.10f, 0.12f};
-static const float GRID[3] = {0.88f, 0.89f, 0.91f};
 static const float WHITE[3] = {1, 1, 1};
 static const float PALETTE[8][3] = {{0.12f, 0.35f, 0.75f}, {0.90f, 0.50f, 0.10f}, {0.15f, 0.55f, 0.25f},
                                     {0.80f, 0.12f, 0.12f}, {0.50f, 0.30f, 0.65f}, {0.55f, 0.35f, 0.20f},
                                     {0.85f, 0.40f, 0.70f}, {0.45f, 0.45f, 0.48f}};
 #define TS 2 /* text scale */
 
-typedef struct box {
-    int x0, y0, x1, y1;
-    double u0, u1, v0, v1;
-} box;
-
-static double bx(const box *b, double u) { return b->x0 + (u - b->u0) / (b->u1 - b->u0) * (b->x1 - b->x0); }
-static double by(const box *b, double v) { return b->y1 - (v - b->v0) / (b->v1 - b->v0) * (b->y1 - b->y0); }
-
-static void nice_range(double *lo, double *hi)
-{
-    if (!(*hi > *lo)) {
-        double m = fabs(*lo) > 0 ? fabs(*lo) * 0.1 : 0.1;
-        *lo -= m;
-        *hi += m;
-    }
-    double pad = (*hi - *lo) * 0.05;
-    double step = canvas_nice_step(*hi - *lo + 2 * pad, 5);
-    if (*lo == 0) pad = 0; /* an axis from zero stays there */
-    *lo = floor((*lo - pad) / step) * step;
-    *hi = ceil((*hi + pad) / step) * step;
-}
+typedef canvas_axes box;
 
 static int find_key(const sweep_plan *p, const char *name)
 {
@@ -81,26 +60,7 @@ static int metric_value(const stf_metrics *m, const char *key, double *v)
 
 static void axes(canvas *c, const box *b, const char *xlabel, const char *ylabel)
 {
-    double us = canvas_nice_step(b->u1 - b->u0, 5), vs = canvas_nice_step(b->v1 - b->v0, 6);
-    int ud = canvas_tick_decimals(us), vd = canvas_tick_decimals(vs);
-    char buf[48];
-    for (double v = ceil(b->v0 / vs - 1e-9) * vs; v <= b->v1 + vs * 1e-6; v += vs) {
-        double y = by(b, v);
-        canvas_line(c, b->x0, y, b->x1, y, GRID, 1);
-        snprintf(buf, sizeof buf, "%.*f", vd, fabs(v) < vs * 1e-6 ? 0.0 : v);
-        canvas_text(c, b->x0 - 12 - canvas_text_width(buf, TS), (int)lround(y) - 7, buf, BLACK, TS);
-    }
-    for (double u = ceil(b->u0 / us - 1e-9) * us; u <= b->u1 + us * 1e-6; u += us) {
-        double x = bx(b, u);
-        canvas_line(c, x, b->y0, x, b->y1, GRID, 1);
-        canvas_line(c, x, b->y1, x, b->y1 + 5, BLACK, 1.5);
-        snprintf(buf, sizeof buf, "%.*f", ud, fabs(u) < us * 1e-6 ? 0.0 : u);
-        canvas_text(c, (int)lround(x) - canvas_text_width(buf, TS) / 2, b->y1 + 13, buf, BLACK, TS);
-    }
-    canvas_line(c, b->x0, b->y0, b->x1, b->y0, BLACK, 1.5);
-    canvas_line(c, b->x0, b->y1, b->x1, b->y1, BLACK, 1.5);
-    canvas_line(c, b->x0, b->y0, b->x0, b->y1, BLACK, 1.5);
-    canvas_line(c, b->x1, b->y0, b->x1, b->y1, BLACK, 1.5);
+    canvas_axes_draw(c, b, 5, 6, 1, TS);
     canvas_text(c, (b->x0 + b->x1 - canvas_text_width(xlabel, TS)) / 2, b->y1 + 40, xlabel, BLACK, TS);
     canvas_text(c, b->x0, 46, ylabel, BLACK, TS); /* under the title, above any "never" band */
 }
@@ -203,7 +163,7 @@ int sweep_plot(const char *png, const sweep_plan *p, const char *metric, const c
     if (!(b.u1 > b.u0)) b.u0 -= 1, b.u1 += 1;
     double pad = (b.u1 - b.u0) * 0.04;
     b.u0 -= pad, b.u1 += pad;
-    nice_range(&b.v0, &b.v1);
+    canvas_nice_range(&b.v0, &b.v1, 1);
     char title[256];
     snprintf(title, sizeof title, "%s vs %s", metric, p->keys[kx].key);
     canvas_text(c, b.x0, 14, title, BLACK, TS + 1);
@@ -225,9 +185,9 @@ int sweep_plot(const char *png, const sweep_plan *p, const char *metric, const c
         for (int ix = 0; ix < nx; ix++) {
             int j = is * nx + ix;
             if (!has[j]) continue;
-            double x = bx(&b, xs[ix]);
+            double x = canvas_axes_x(&b, xs[ix]);
             if (nfin[j]) {
-                double y = by(&b, mean[j]);
+                double y = canvas_axes_y(&b, mean[j]);
                 if (!isnan(px)) canvas_line(c, px, py, x, y, col, 2.2);
                 px = x, py = y;
             } else px = py = NAN; /* a null breaks the line */
@@ -235,8 +195,8 @@ int sweep_plot(const char *png, const sweep_plan *p, const char *metric, const c
         for (int ix = 0; ix < nx; ix++) {
             int j = is * nx + ix;
             if (!has[j]) continue;
-            double x = bx(&b, xs[ix]);
-            if (nfin[j]) marker(c, x, by(&b, mean[j]), col, 0);
+            double x = canvas_axes_x(&b, xs[ix]);
+            if (nfin[j]) marker(c, x, canvas_axes_y(&b, mean[j]), col, 0);
             else marker(c, x + 4.0 * (is - (ns - 1) / 2.0), b.y0 - band / 2, col, 1);
         }
         if (ks >= 0) {
