@@ -54,19 +54,24 @@ void history_free(stf_history *h)
     memset(h, 0, sizeof *h);
 }
 
+void *history_grow_zeroed(void *p, size_t old_n, size_t new_n, size_t size)
+{
+    char *q = realloc(p, new_n * size);
+    if (q) memset(q + old_n * size, 0, (new_n - old_n) * size);
+    return q;
+}
+
 int history_resize(stf_history *h, int n)
 {
     if (h->terms) return history_soe_resize(h, n);
     if (n <= h->n_alloc) return 0;
     int cap = n + n / 4 + 16;
     size_t row = (size_t)h->cap * 3;
-    float *ring = realloc(h->ring, (size_t)cap * row * sizeof *ring);
+    float *ring = history_grow_zeroed(h->ring, (size_t)h->n_alloc * row, (size_t)cap * row, sizeof *ring);
     if (!ring) return -1;
-    memset(ring + (size_t)h->n_alloc * row, 0, (size_t)(cap - h->n_alloc) * row * sizeof *ring);
     h->ring = ring;
-    double *D = realloc(h->D, (size_t)cap * 3 * sizeof *D);
+    double *D = history_grow_zeroed(h->D, (size_t)h->n_alloc * 3, (size_t)cap * 3, sizeof *D);
     if (!D) return -1;
-    memset(D + (size_t)h->n_alloc * 3, 0, (size_t)(cap - h->n_alloc) * 3 * sizeof *D);
     h->D = D;
     h->n_alloc = cap;
     return 0;

@@ -31,6 +31,9 @@ int history_init(stf_history *h, double q, int window, int n);
 void history_free(stf_history *h);
 /* Grows the particle count to n (new particles have a zero past). */
 int history_resize(stf_history *h, int n);
+/* realloc of p from old_n to new_n elements of size bytes, the new ones zeroed; NULL (p
+ * untouched) when out of memory. */
+void *history_grow_zeroed(void *p, size_t old_n, size_t new_n, size_t size);
 /* Stores v (3n) as the newest sample. */
 int history_push(stf_history *h, const double *v, int n);
 /* Computes D for every particle from the stored samples. */
