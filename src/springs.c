@@ -109,10 +109,11 @@ static double plastic_rest(double L, double r, double gamma, double alpha, doubl
 }
 
 /* Alg. 3 with Eq. 6 for one spring of particle i (to j at r = (rx, ry, rz), |r| = r, rest
- * length L): adds -D/2 to d, the history stiffness to *ksum and the gain to *csum. */
+ * length L): adds -D/2 to d, the history stiffness to *ksum and the gain to *csum; the
+ * displacement is scaled by scale (1, or the saturation factor, see saturated_one). */
 static inline void push_one(const stf_fluid *f, int i, int j, double rx, double ry, double rz,
-                            double r, double L, double dt, double khist_scale, double d[3],
-                            double *ksum, double *csum)
+                            double r, double L, double dt, double khist_scale, double scale,
+                            double d[3], double *ksum, double *csum)
 {
     const double *D = f->hist.D;
     double h = f->h;
@@ -128,7 +129,7 @@ static inline void push_one(const stf_fluid *f, int i, int j, double rx, double 
     }
     double c = dt * dt * kij * (1.0 - L / h); /* the spring's gain (saturation, below) */
     *csum += c;
-    double mag = 0.5 * c * (L - r) / r;
+    double mag = 0.5 * (c * scale) * (L - r) / r;
     d[0] -= mag * rx;
     d[1] -= mag * ry;
     d[2] -= mag * rz;
@@ -162,7 +163,7 @@ static int adjust_one(stf_fluid *f, int i, int64_t stamp, int64_t *mark, double 
             nL[cnt] = L;
         }
         cnt++;
-        push_one(f, i, j, rx, ry, rz, r, L, dt, khist_scale, d, &ksum, &csum);
+        push_one(f, i, j, rx, ry, rz, r, L, dt, khist_scale, 1.0, d, &ksum, &csum);
     }
     const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
     for (int k = 0; k < f->grid.count[i]; k++) {
@@ -179,7 +180,7 @@ static int adjust_one(stf_fluid *f, int i, int64_t stamp, int64_t *mark, double 
             nL[cnt] = r;
         }
         cnt++;
-        push_one(f, i, j, rx, ry, rz, r, r, dt, khist_scale, d, &ksum, &csum);
+        push_one(f, i, j, rx, ry, rz, r, r, dt, khist_scale, 1.0, d, &ksum, &csum);
     }
     for (int a = 0; a < 3; a++) f->dx[3 * i + a] = d[a];
     if (f->khist_mean) f->khist_mean[i] = cnt > 0 ? (float)(ksum / cnt) : 0.0f;
@@ -187,56 +188,35 @@ static int adjust_one(stf_fluid *f, int i, int64_t stamp, int64_t *mark, double 
     return cnt;
 }
 
-/* Alg. 3 with Eq. 6 for particle i over its current springs: gathers -D/2 of each into f->dx
- * (the saturated second pass; the common pass is fused into adjust_one).
+/* Alg. 3 with Eq. 6 for particle i over its current springs, saturated: gathers -D/2 of each
+ * into f->dx (the second pass, run only when some gain sum exceeds 1; the common pass is fused
+ * into adjust_one).
  *
  * Saturation. The pair (i, j) is pulled towards its rest length by the gain
  * c_ij = dt^2 k_ij (1 - L/h), half on each side. Taken together (Jacobi) the update of
  * particle i moves it by up to sum_j c_ij times its springs' deformations; by Gershgorin the
  * update's eigenvalues stay <= 1 (no overshoot) when that sum is <= 1 for every particle.
  * The history term can make k_ij arbitrarily large (at 100 times the bowling scene's k_hist,
- * sum c_ij reaches tens and the run blew up in 20 steps), so with scale != NULL each gain is
- * multiplied by min(scale_i, scale_j), scale_i = min(1, 1 / sum_j c_ij): a spring never does
- * more than become rigid within the step. The factor is symmetric, so the two halves of a
- * pair stay exact negatives (momentum). *gain gets sum_j c_ij. */
-static void displace_one(stf_fluid *f, int i, double dt, double khist_scale, const double *scale,
-                         double *gain)
+ * sum c_ij reaches tens and the run blew up in 20 steps), so each gain is multiplied by
+ * min(scale_i, scale_j), scale_i = min(1, 1 / sum_j c_ij): a spring never does more than
+ * become rigid within the step. The factor is symmetric, so the two halves of a pair stay
+ * exact negatives (momentum). The history stiffness and gains are those of the fused pass. */
+static void saturated_one(stf_fluid *f, int i, double dt, double khist_scale, const double *scale)
 {
     const stf_springs *s = &f->springs;
-    const double *x = f->x, *D = f->hist.D;
-    double h = f->h, dx = 0, dy = 0, dz = 0, ksum = 0, csum = 0;
-    int n = s->count[i];
+    const double *x = f->x;
+    double d[3] = {0, 0, 0}, ksum = 0, csum = 0;
     const int32_t *p = s->partner + (size_t)i * s->stride;
     const double *Ls = s->rest + (size_t)i * s->stride;
-    for (int k = 0; k < n; k++) {
+    for (int k = 0; k < s->count[i]; k++) {
         int j = p[k];
         double rx = x[3 * j] - x[3 * i], ry = x[3 * j + 1] - x[3 * i + 1],
                rz = x[3 * j + 2] - x[3 * i + 2];
         double r = sqrt(rx * rx + ry * ry + rz * rz);
-        if (r <= 1e-12 * h) continue; /* coincident: no direction to push along */
-        double kij = f->def.k_min;
-        if (khist_scale > 0) {
-            double ex = D[3 * i] - D[3 * j], ey = D[3 * i + 1] - D[3 * j + 1],
-                   ez = D[3 * i + 2] - D[3 * j + 2];
-            double kh = khist_scale * sqrt(ex * ex + ey * ey + ez * ez); /* Eq. 6 */
-            kh = kh > f->def.k_onset ? kh - f->def.k_onset : 0.0; /* as in push_one */
-            kij += kh;
-            ksum += kh;
-        }
-        double L = Ls[k];
-        double c = dt * dt * kij * (1.0 - L / h);
-        csum += c;
-        if (scale) c *= scale[i] < scale[j] ? scale[i] : scale[j];
-        double mag = 0.5 * c * (L - r) / r;
-        dx -= mag * rx;
-        dy -= mag * ry;
-        dz -= mag * rz;
+        push_one(f, i, j, rx, ry, rz, r, Ls[k], dt, khist_scale,
+                 scale[i] < scale[j] ? scale[i] : scale[j], d, &ksum, &csum);
     }
-    f->dx[3 * i] = dx;
-    f->dx[3 * i + 1] = dy;
-    f->dx[3 * i + 2] = dz;
-    if (gain) *gain = csum;
-    if (f->khist_mean) f->khist_mean[i] = n > 0 ? (float)(ksum / n) : 0.0f;
+    for (int a = 0; a < 3; a++) f->dx[3 * i + a] = d[a];
 }
 
 int springs_step(stf_fluid *f, double dt)
@@ -277,14 +257,14 @@ int springs_step(stf_fluid *f, double dt)
 #pragma omp parallel for schedule(static) reduction(max : most_gain)
     for (int i = 0; i < n; i++)
         if (s->gain[i] > most_gain) most_gain = s->gain[i];
-    if (most_gain > 1.0) { /* saturate (see displace_one); the common case costs nothing more */
+    if (most_gain > 1.0) { /* saturate (see saturated_one); the common case costs nothing more */
 #pragma omp parallel for schedule(static)
         for (int i = 0; i < n; i++) {
             double g = s->gain[i];
             s->gain[i] = g > 1.0 ? 1.0 / g : 1.0;
         }
 #pragma omp parallel for schedule(static)
-        for (int i = 0; i < n; i++) displace_one(f, i, dt, khist_scale, s->gain, NULL);
+        for (int i = 0; i < n; i++) saturated_one(f, i, dt, khist_scale, s->gain);
         s->saturated_steps++;
     }
     s->max_gain = most_gain;
