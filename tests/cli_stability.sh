@@ -85,6 +85,22 @@ sys.exit(0 if same else 1)' || { echo "cli_stability: FAIL: dt_2x: 1 and 2 threa
     [ $rc -eq 3 ] || { echo "cli_stability: FAIL: dt_2x fixed: exit $rc, want 3" >&2; fails=$((fails + 1)); }
 fi
 
+# A bullet: the lead ball at 60 m/s into a 2 mm wall. The adaptive control splits the step so
+# that the ball moves at most half its radius per substep; with dt_control: fixed the same run
+# must tunnel (ODE's contacts are discrete), so the control is what holds it.
+bullet=(--set container.wall=0.002 --set 'bodies.0.velocity=[-60, 0, 0]'
+    --set 'bodies.0.position=[-0.02, 0, 0.04]' --set bodies.0.density=11340 --set duration=0.1)
+run_case bullet "$pool" "--energy-margin 0.1" "${bullet[@]}"
+if [ "$only" = "  " ] || [[ "$only" == *" bullet "* ]]; then
+    "$stf" run "$pool" -o bullet_fixed.h5 --quiet --threads 1 "${bullet[@]}" \
+        --set dt_control=fixed 2>/dev/null
+    if /usr/bin/python3 "$check" bullet_fixed.h5 --energy-margin 0.1 >bullet_fixed.txt 2>&1 ||
+        ! grep -q "through a wall" bullet_fixed.txt; then
+        echo "cli_stability: FAIL: bullet with dt_control fixed did not tunnel" >&2
+        fails=$((fails + 1))
+    fi
+fi
+
 # Particles on top of each other: a second block of 32 particles on the same (unjittered)
 # lattice sites as the pool's. The doubled density at those sites is pressure energy that E
 # does not count; it is released in the first 10 ms (E rises by 61%), so E0 is the energy at
