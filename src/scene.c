@@ -729,17 +729,20 @@ static const char *const convex_keys[] = {"points", NULL};
 static const char *const *const shape_keys[] = {radius_keys, box_keys, round_keys, round_keys,
                                                 convex_keys};
 
-static int valid_name(const char *s)
+/* Names become HDF5 group names and file names: letters, digits, '_' and those of `extra`. */
+static int valid_name_ext(const char *s, const char *extra)
 {
     if (!s[0]) return 0;
     for (; *s; s++) {
         char ch = *s;
         int ok = (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') ||
-                 ch == '_';
+                 ch == '_' || strchr(extra, ch);
         if (!ok) return 0;
     }
     return 1;
 }
+
+static int valid_name(const char *s) { return valid_name_ext(s, ""); }
 
 /* Appends the convex points of m.points to scene->points; *first is the index of the first. */
 static int parse_points(loader *L, const mapv *m, int *first, int *count)
@@ -1003,7 +1006,10 @@ static int parse_scene(loader *L)
     file_stem(s->path, s->name, sizeof s->name);
     s->dt = 0.001;
     s->frame_rate = 60;
-    if (get_str(L, &top, "name", s->name, sizeof s->name) < 0) return SCENE_BAD;
+    int named = get_str(L, &top, "name", s->name, sizeof s->name);
+    if (named < 0) return SCENE_BAD;
+    if (named > 0 && !valid_name_ext(s->name, "-."))
+        return fail_value(L, &top, "name", "must be non-empty and use only [A-Za-z0-9_.-]");
     if (need_num(L, &top, "duration", R_POS, &s->duration)) return SCENE_BAD;
     if (get_num(L, &top, "dt", R_POS, &s->dt) < 0) return SCENE_BAD;
     if (s->dt > 0.1) return fail_value(L, &top, "dt", "must be > 0 and <= 0.1");
@@ -1305,9 +1311,13 @@ static int load(loader *L, const char *text)
     for (int i = 0; i < L->nov; i++) {
         if (apply_override(L, i)) return SCENE_BAD;
     }
+    int rc = parse_scene(L);
+    if (rc) return rc;
+    /* Emitted only once the scene is valid: libfyaml 0.7.12's emitter leaks on some scalars
+     * a valid scene cannot hold (found by the fuzzer: a long run of quotes). */
     s->text = fy_emit_document_to_string(L->fyd, FYECF_MODE_BLOCK | FYECF_WIDTH_INF);
     if (!s->text) s->text = calloc(1, 1);
-    return parse_scene(L);
+    return 0;
 }
 
 int stf_scene_load_string(const char *name, const char *text, const stf_override *ov, int nov,

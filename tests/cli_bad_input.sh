@@ -71,6 +71,11 @@ L=$(line_of unknown.yaml '^colour:')
 expect_bad unknown "unknown\\.yaml:$L:1: colour: " 'unknown key' -- \
     "$STF" run unknown.yaml -o out.h5 --quiet
 
+# names become HDF5 group and file names
+mk badname.yaml 's/^name: small_drop/name: "small drop\/x"/'
+expect_bad badname 'badname\.yaml:3:[78]: name: ' 'A-Za-z0-9' -- \
+    "$STF" run badname.yaml -o out.h5 --quiet
+
 mk negspacing.yaml 's/^  spacing: 0.01/  spacing: -0.01/'
 L=$(line_of negspacing.yaml '^  spacing:')
 expect_bad negspacing "negspacing\\.yaml:$L:12: fluid\\.spacing: " '> 0' -- \

@@ -25,7 +25,8 @@ clang -g -O1 -std=c11 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=
   $(pkg-config --libs libfyaml hdf5) -lhdf5_serial_hl -lccd -fopenmp -lm -o "$out/fuzz_scene"
 cd "$out"
 set +e
-./fuzz_scene -max_total_time="$secs" -max_len=4096 -timeout=10 -rss_limit_mb=2048 \
+LSAN_OPTIONS=suppressions=$src/tests/fuzz/lsan.supp:print_suppressions=0 \
+  ./fuzz_scene -max_total_time="$secs" -max_len=4096 -timeout=10 -rss_limit_mb=2048 \
   -print_final_stats=1 "$@" corpus > fuzz.log 2>&1
 rc=$?
 set -e
