@@ -5,9 +5,10 @@
 # `stf report` up to the last complete frame, because every frame is flushed when complete
 # and HDF5 writes no metadata in between (src/h5io.c). The kills land at several moments.
 # Residual risk (HDF5 1.10 without SWMR cannot order its metadata writes): a kill inside the
-# millisecond of the flush that links a frame can still tear the root group; measured with a
-# frame every step 0 of 200 kills unloaded, but 1 of 6 once on a loaded machine; at this
-# scene's 50 frames/s 0 of 80 under load. So the kills here use 50 frames/s.
+# millisecond of the flush that links a frame could still tear the root group. Measured with
+# a frame every step (tests/kill_stress.sh): 0 of 200 kills unloaded, 0 of 180 at load 5-8
+# (an early version of this writer tore 1 of 6 under load); at this scene's 50 frames/s 0 of
+# 80 under load. The kills here use 50 frames/s.
 # Args: STF_BINARY PROJECT_DIR
 set -u
 stf=$1; src=$2
