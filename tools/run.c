@@ -441,9 +441,6 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
                     100 * sc->fluid.cy.eta, u->run_cg_sum / (double)sim->steps, u->run_cg_max);
     }
     if (status == 2) fprintf(stderr, "stf: writing %s failed: %s\n", out, stf_h5_last_error(h));
-    /* a run that ended (done, or a numerical failure it would repeat) has nothing to resume */
-    if ((status == 0 || status == 3) && stf_h5_delete_checkpoint(h) != 0 && status == 0)
-        status = 2;
     stf_h5_flush_for_reading(h);
     if (stf_metrics_compute(out, m, err, sizeof err) == 0) {
         char *json = stf_metrics_json(m);
@@ -453,6 +450,13 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
     /* how the run ended (0 done, 3 numerical failure, 130 interrupted, 2 write error): a
        file without it was killed; `stf sweep` resumes every run not ended by 0 or 3 */
     stf_h5_attr_long(h, "exit_status", status);
+    /* a run that ended (done, or a numerical failure it would repeat) has nothing to resume;
+       removed after exit_status is written, so a kill in between leaves a file that says so */
+    if ((status == 0 || status == 3) && stf_h5_delete_checkpoint(h) != 0 && status == 0) {
+        fprintf(stderr, "stf: %s: %s\n", out, stf_h5_last_error(h));
+        status = 2;
+        stf_h5_attr_long(h, "exit_status", status);
+    }
     if (stf_h5_close(h, err, sizeof err) != 0) {
         fprintf(stderr, "stf: %s\n", err);
         if (status == 0) status = 2;
