@@ -8,6 +8,7 @@
  *                         quaternion[N][4] (w x y z), velocity[N][3],
  *                         angular_velocity[N][3], fluid_force[N][3]
  *   /metrics              string attribute "json"
+ *   /checkpoint           while a run goes: its state for `stf run --resume` (see below)
  * plus an XDMF sidecar OUT.xmf next to OUT.h5 (written by stf_h5_close) for ParaView.
  *
  * The file is flushed after every frame and body row, so a killed run leaves a file that
