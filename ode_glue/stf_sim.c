@@ -178,6 +178,14 @@ int stf_sim_create(const stf_scene *scene, stf_sim **out, char *err, size_t errl
         s->rng[k] = v->seed * 2654435761u + 1u;
     }
     s->removed = stf_ode_remove_overlaps(s->coupler);
+    s->ngeoms = dSpaceGetNumGeoms(s->space);
+    s->geoms = calloc((size_t)s->ngeoms + 1, sizeof *s->geoms);
+    if (!s->geoms) {
+        snprintf(err, errlen, "out of memory");
+        rc = 2;
+        goto fail;
+    }
+    for (int k = 0; k < s->ngeoms; k++) s->geoms[k] = dSpaceGetGeom(s->space, k);
     *out = s;
     return 0;
 fail:
@@ -196,6 +204,7 @@ void stf_sim_destroy(stf_sim *s)
     free(s->phase);
     free(s->freq);
     free(s->rng);
+    free(s->geoms);
     free(s);
 }
 
@@ -313,4 +322,114 @@ void stf_sim_body_state(const stf_sim *s, int k, double pos[3], double quat[4], 
     for (int a = 0; a < 4; a++) quat[a] = q[a];
     double torque[3];
     stf_ode_body_fluid_force(s->coupler, b, force, torque);
+}
+
+/* ---------------------------------------------------------------------- checkpoints */
+
+/* ODE bodies in checkpoint order: the scene's bodies, then the container's (if it moves). */
+static int ode_body_count(const stf_sim *s) { return s->scene->nbodies + (s->container != 0); }
+static dBodyID ode_body(const stf_sim *s, int k)
+{
+    return k < s->scene->nbodies ? s->bodies[k] : s->container;
+}
+
+int stf_sim_save_state(const stf_sim *s, stf_state *st)
+{
+    int nb = s->scene->nbodies, no = ode_body_count(s);
+    stf_state_put_i64(st, "sim.steps", s->steps);
+    stf_state_put_i64(st, "sim.substeps", s->substeps);
+    stf_state_put_f64(st, "sim.time", s->time);
+    stf_state_put_f64(st, "sim.dt_min", s->dt_min);
+    stf_state_put_f64(st, "sim.dt_max", s->dt_max);
+    stf_state_put(st, "sim.phase", STF_STATE_F64, (size_t)nb + 1, s->phase);
+    stf_state_put(st, "sim.freq", STF_STATE_F64, (size_t)nb + 1, s->freq);
+    stf_state_put(st, "sim.rng", STF_STATE_I32, (size_t)nb + 1, s->rng);
+    stf_state_put_i64(st, "ode.rand_seed", (int64_t)dRandGetSeed());
+    /* pos 3, quaternion 4, velocity 3, angular velocity 3, enabled 1 per body: the rotation
+       matrix is ODE's function of the quaternion, so it is not stored */
+    double *b = malloc((size_t)(no > 0 ? no : 1) * 14 * sizeof *b);
+    /* the geoms' order in the space: the order of collision pairs, so of the contacts */
+    int32_t *order = malloc((size_t)(s->ngeoms > 0 ? s->ngeoms : 1) * sizeof *order);
+    if (!b || !order) {
+        free(b);
+        free(order);
+        return -1;
+    }
+    for (int k = 0; k < no; k++) {
+        dBodyID body = ode_body(s, k);
+        const dReal *p = dBodyGetPosition(body), *q = dBodyGetQuaternion(body),
+                    *v = dBodyGetLinearVel(body), *w = dBodyGetAngularVel(body);
+        double *r = b + 14 * k;
+        for (int a = 0; a < 3; a++) r[a] = p[a], r[7 + a] = v[a], r[10 + a] = w[a];
+        for (int a = 0; a < 4; a++) r[3 + a] = q[a];
+        r[13] = dBodyIsEnabled(body);
+    }
+    for (int k = 0; k < s->ngeoms; k++) {
+        dGeomID g = dSpaceGetGeom(s->space, k);
+        order[k] = -1;
+        for (int m = 0; m < s->ngeoms; m++)
+            if (s->geoms[m] == g) order[k] = m;
+    }
+    stf_state_put_owned(st, "ode.bodies", STF_STATE_F64, (size_t)no * 14, b);
+    stf_state_put_owned(st, "ode.geom_order", STF_STATE_I32, (size_t)s->ngeoms, order);
+    if (stf_fluid_save_state(s->fluid, st) != 0) return -1;
+    return st->failed ? -1 : 0;
+}
+
+int stf_sim_load_state(stf_sim *s, const stf_state *st, char *err, size_t errlen)
+{
+    int nb = s->scene->nbodies, no = ode_body_count(s);
+    int64_t steps, substeps, seed;
+    if (stf_state_get_i64(st, "sim.steps", &steps, err, errlen) ||
+        stf_state_get_i64(st, "sim.substeps", &substeps, err, errlen) ||
+        stf_state_get_f64(st, "sim.time", &s->time, err, errlen) ||
+        stf_state_get_f64(st, "sim.dt_min", &s->dt_min, err, errlen) ||
+        stf_state_get_f64(st, "sim.dt_max", &s->dt_max, err, errlen) ||
+        stf_state_get(st, "sim.phase", STF_STATE_F64, (size_t)nb + 1, s->phase, err, errlen) ||
+        stf_state_get(st, "sim.freq", STF_STATE_F64, (size_t)nb + 1, s->freq, err, errlen) ||
+        stf_state_get(st, "sim.rng", STF_STATE_I32, (size_t)nb + 1, s->rng, err, errlen) ||
+        stf_state_get_i64(st, "ode.rand_seed", &seed, err, errlen))
+        return -1;
+    const stf_state_entry *b = stf_state_find(st, "ode.bodies", STF_STATE_F64, (size_t)no * 14);
+    const stf_state_entry *o = stf_state_find(st, "ode.geom_order", STF_STATE_I32, (size_t)s->ngeoms);
+    if (!b || !o) {
+        snprintf(err, errlen, "checkpoint: the bodies or geoms do not match the scene's (%d "
+                 "moving bodies, %d geoms)", no, s->ngeoms);
+        return -1;
+    }
+    const int32_t *order = o->data;
+    for (int k = 0; k < s->ngeoms; k++) {
+        int seen = 0;
+        for (int m = 0; m < s->ngeoms; m++) seen += order[m] == k;
+        if (seen != 1) {
+            snprintf(err, errlen, "checkpoint: ode.geom_order is not a permutation");
+            return -1;
+        }
+    }
+    if (stf_fluid_load_state(s->fluid, st, err, errlen) != 0) return -1;
+    s->steps = (long)steps;
+    s->substeps = (long)substeps;
+    dRandSetSeed((unsigned long)seed);
+    for (int k = 0; k < no; k++) {
+        dBodyID body = ode_body(s, k);
+        const double *r = (const double *)b->data + 14 * k;
+        dBodySetPosition(body, r[0], r[1], r[2]);
+        dQuaternion q = {r[3], r[4], r[5], r[6]};
+        dBodySetQuaternion(body, q);
+        /* dBodySetQuaternion normalizes, which may move the last bit of a quaternion ODE
+           normalized itself: store it as it was, and the rotation ODE derives from it */
+        dReal *bq = (dReal *)dBodyGetQuaternion(body), *R = (dReal *)dBodyGetRotation(body);
+        for (int a = 0; a < 4; a++) bq[a] = q[a];
+        dRfromQ(R, q);
+        dBodySetLinearVel(body, r[7], r[8], r[9]);
+        dBodySetAngularVel(body, r[10], r[11], r[12]);
+        if (r[13] != 0) dBodyEnable(body);
+        else dBodyDisable(body);
+    }
+    for (int k = s->ngeoms - 1; k >= 0; k--) { /* each add goes to the front */
+        dGeomID g = s->geoms[order[k]];
+        dSpaceRemove(s->space, g);
+        dSpaceAdd(s->space, g);
+    }
+    return 0;
 }

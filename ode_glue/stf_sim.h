@@ -4,6 +4,7 @@
 #ifndef STF_SIM_H
 #define STF_SIM_H
 
+#include "state.h"
 #include "stf_ode.h"
 
 typedef struct stf_sim {
@@ -23,6 +24,9 @@ typedef struct stf_sim {
     double time;            /* s, steps * dt */
     long substeps;          /* substeps taken (>= steps; more when adaptive control split steps) */
     double dt_min, dt_max;  /* s, shortest and longest substep taken (0 before the first) */
+    dGeomID *geoms;         /* the space's geoms in their order after creation (checkpoints
+                               name a geom by its index here) */
+    int ngeoms;
 } stf_sim;
 
 /* Builds the simulation. Returns 0; 2 with a message for a scene that cannot be built. */
@@ -36,5 +40,14 @@ int stf_sim_step(stf_sim *s);
  * (rad/s), fluid force of the last step (N). */
 void stf_sim_body_state(const stf_sim *s, int k, double pos[3], double quat[4], double vel[3],
                         double angvel[3], double force[3]);
+
+/* Checkpoints (`stf run --resume`): adds the run's state to st (the fluid's, the bodies'
+ * poses and velocities, the space's geom order, the vibration phases and random states, the
+ * step counters), borrowing arrays of s: write st before the next step. 0 / -1 (out of
+ * memory). */
+int stf_sim_save_state(const stf_sim *s, stf_state *st);
+/* Loads a state saved from a simulation built from the same scene into s, freshly created:
+ * the next stf_sim_step continues bit for bit. 0, or -1 with a message. */
+int stf_sim_load_state(stf_sim *s, const stf_state *st, char *err, size_t errlen);
 
 #endif

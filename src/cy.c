@@ -51,6 +51,7 @@
  *   missing once: at least 0.87 h from a particle, a small term).
  */
 #include "cy.h"
+#include "state.h"
 
 #include <math.h>
 #include <omp.h>
@@ -900,4 +901,43 @@ int cy_describe(const stf_fluid *f, char *buf, size_t len)
                     c->viscosity_solver == STF_VISCOSITY_EXPLICIT ? "explicit" : "implicit",
                     c->cg_tolerance, c->max_cg_iterations, c->cfl, c->dt_max, c->warm_start,
                     c->relaxation > 0 ? c->relaxation : 1.0, f->cy ? f->cy->rho0 : 0.0);
+}
+
+/* ---------------------------------------------------------------------- checkpoints */
+
+/* The warm start's pressures (ktot) and densities carry over steps; everything else is
+ * recomputed by each substep before it is read. */
+int cy_save_state(const stf_fluid *f, stf_state *s)
+{
+    const cy_state *c = f->cy;
+    int n = c->cap >= f->n ? f->n : 0; /* no array before the first step */
+    stf_state_put_i64(s, "cy.warm_n", c->warm_n);
+    stf_state_put_i64(s, "cy.n", n);
+    if (n) {
+        stf_state_put(s, "cy.ktot", STF_STATE_F64, (size_t)n, c->ktot);
+        stf_state_put(s, "cy.rho", STF_STATE_F64, (size_t)n, c->rho);
+    }
+    return s->failed ? -1 : 0;
+}
+
+int cy_load_state(stf_fluid *f, const stf_state *s, char *err, size_t errlen)
+{
+    cy_state *c = f->cy;
+    int64_t warm_n, n;
+    if (stf_state_get_i64(s, "cy.warm_n", &warm_n, err, errlen) ||
+        stf_state_get_i64(s, "cy.n", &n, err, errlen))
+        return -1;
+    if ((n != 0 && n != f->n) || (warm_n != 0 && warm_n != f->n)) {
+        snprintf(err, errlen, "checkpoint: cy.n %ld does not match %d particles", (long)n, f->n);
+        return -1;
+    }
+    c->warm_n = (int)warm_n;
+    if (n == 0) return 0;
+    if (reserve(f, f->n) != 0) {
+        snprintf(err, errlen, "checkpoint: out of memory");
+        return -1;
+    }
+    return stf_state_get(s, "cy.ktot", STF_STATE_F64, (size_t)n, c->ktot, err, errlen) ||
+                   stf_state_get(s, "cy.rho", STF_STATE_F64, (size_t)n, c->rho, err, errlen)
+               ? -1 : 0;
 }

@@ -17,5 +17,9 @@ void cy_free(stf_fluid *f);
 int cy_step(stf_fluid *f, double dt);
 /* Appends the model's effective parameters as YAML lines. Returns the length written. */
 int cy_describe(const stf_fluid *f, char *buf, size_t len);
+/* Checkpoints: the warm-start pressures (state.h). 0, or -1 (with a message on load). */
+struct stf_state;
+int cy_save_state(const stf_fluid *f, struct stf_state *s);
+int cy_load_state(stf_fluid *f, const struct stf_state *s, char *err, size_t errlen);
 
 #endif

@@ -353,3 +353,13 @@ size_t grid_bytes(const stf_grid *g)
                                  (size_t)(g->stride + g->cstride) * sizeof(int32_t)) +
            ((size_t)g->nbuckets_alloc + 1) * sizeof(int32_t);
 }
+
+int grid_restore(stf_grid *g, const double *xref, int n, double h, double skin_used)
+{
+    if (ensure_particles(g, n) != 0) return -1;
+    double skin = g->skin;
+    g->skin = skin_used;
+    int rc = rebuild(g, xref, n, h);
+    g->skin = skin;
+    return rc;
+}

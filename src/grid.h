@@ -58,5 +58,9 @@ void grid_free(stf_grid *g);
 /* The particles were renumbered: the next grid_build rebuilds its candidates. */
 static inline void grid_invalidate(stf_grid *g) { g->valid = 0; }
 size_t grid_bytes(const stf_grid *g);
+/* Checkpoints: rebuilds the candidate lists from the positions xref (3n) of their last
+ * rebuild, with radius h and the skin (fraction of h) they had: the same lists in the same
+ * order as then. 0 / -1 (out of memory). */
+int grid_restore(stf_grid *g, const double *xref, int n, double h, double skin_used);
 
 #endif

@@ -12,6 +12,8 @@
 
 #include <hdf5.h>
 
+#include "state.h"
+
 #define FRAME_PREFIX "Step#"
 #define FRAME_CHUNK 65536 /* particles per chunk of a frame dataset */
 #define BODY_CHUNK 256    /* rows per chunk of a body series */
@@ -1012,4 +1014,259 @@ int stf_h5r_body_series(const stf_h5r *r, const char *name, double **time, doubl
         return -1;
     }
     return (int)rows;
+}
+
+/* ====================================================================================
+ * checkpoints
+ * ==================================================================================== */
+
+#define CKPT_NAME "checkpoint"
+#define CKPT_NEW "checkpoint.new"
+
+static hid_t state_file_type(int type)
+{
+    switch (type) {
+    case STF_STATE_F64: return H5T_IEEE_F64LE;
+    case STF_STATE_F32: return H5T_IEEE_F32LE;
+    case STF_STATE_I32: return H5T_STD_I32LE;
+    default: return H5T_STD_I64LE;
+    }
+}
+
+static hid_t state_mem_type(int type)
+{
+    switch (type) {
+    case STF_STATE_F64: return H5T_NATIVE_DOUBLE;
+    case STF_STATE_F32: return H5T_NATIVE_FLOAT;
+    case STF_STATE_I32: return H5T_NATIVE_INT32;
+    default: return H5T_NATIVE_INT64;
+    }
+}
+
+static int write_entry(hid_t g, const stf_state_entry *e)
+{
+    hsize_t n = e->count;
+    hid_t space = H5Screate_simple(1, &n, NULL);
+    hid_t d = space < 0 ? -1
+                        : H5Dcreate2(g, e->name, state_file_type(e->type), space, H5P_DEFAULT,
+                                     H5P_DEFAULT, H5P_DEFAULT);
+    int rc = d >= 0 && (n == 0 || H5Dwrite(d, state_mem_type(e->type), H5S_ALL, H5S_ALL,
+                                           H5P_DEFAULT, e->data) >= 0)
+                 ? 0 : -1;
+    close_id(d);
+    close_id(space);
+    return rc;
+}
+
+static int unlink_if_there(hid_t file, const char *name)
+{
+    htri_t there = H5Lexists(file, name, H5P_DEFAULT);
+    return there < 0 || (there > 0 && H5Ldelete(file, name, H5P_DEFAULT) < 0) ? -1 : 0;
+}
+
+int stf_h5_write_checkpoint(stf_h5 *h, const stf_state *st)
+{
+    if (!h) return -1;
+    hid_t g = st->failed ? -1 : H5Gcreate_anon(h->file, H5P_DEFAULT, H5P_DEFAULT);
+    int rc = g >= 0 ? 0 : -1;
+    for (int k = 0; k < st->n && rc == 0; k++) rc = write_entry(g, &st->e[k]);
+    /* as for frames: the unlinked group and the new end of allocation reach the disk
+       before the link does (stf_h5_write_frame) */
+    if (rc == 0 && (unlink_if_there(h->file, CKPT_NEW) != 0 ||
+                    H5Fflush(h->file, H5F_SCOPE_GLOBAL) < 0 ||
+                    H5Olink(g, h->file, CKPT_NEW, H5P_DEFAULT, H5P_DEFAULT) < 0 ||
+                    H5Fflush(h->file, H5F_SCOPE_GLOBAL) < 0))
+        rc = -1;
+    close_id(g);
+    if (rc == 0 && (unlink_if_there(h->file, CKPT_NAME) != 0 ||
+                    H5Lmove(h->file, CKPT_NEW, h->file, CKPT_NAME, H5P_DEFAULT, H5P_DEFAULT) < 0 ||
+                    flush_and_bound(h) < 0))
+        rc = -1;
+    if (rc != 0) snprintf(h->err, sizeof h->err, "cannot write /" CKPT_NAME);
+    return rc;
+}
+
+int stf_h5_delete_checkpoint(stf_h5 *h)
+{
+    if (!h) return -1;
+    if (unlink_if_there(h->file, CKPT_NEW) == 0 && unlink_if_there(h->file, CKPT_NAME) == 0 &&
+        H5Fflush(h->file, H5F_SCOPE_GLOBAL) >= 0)
+        return 0;
+    snprintf(h->err, sizeof h->err, "cannot remove /" CKPT_NAME);
+    return -1;
+}
+
+/* Reads dataset name of g into a new entry of st. */
+static int read_entry(hid_t g, const char *name, stf_state *st)
+{
+    static const int types[4] = {STF_STATE_F64, STF_STATE_F32, STF_STATE_I32, STF_STATE_I64};
+    hid_t d = H5Dopen2(g, name, H5P_DEFAULT);
+    hid_t t = d < 0 ? -1 : H5Dget_type(d);
+    hid_t s = d < 0 ? -1 : H5Dget_space(d);
+    int type = -1, rc = -1;
+    for (int k = 0; k < 4 && t >= 0; k++)
+        if (H5Tequal(t, state_file_type(types[k])) > 0) type = types[k];
+    hsize_t n = 0;
+    if (type >= 0 && s >= 0 && H5Sget_simple_extent_ndims(s) == 1 &&
+        H5Sget_simple_extent_dims(s, &n, NULL) == 1 && n < ((hsize_t)1 << 40)) {
+        void *buf = malloc((size_t)(n > 0 ? n : 1) * stf_state_type_size(type));
+        if (buf && (n == 0 || H5Dread(d, state_mem_type(type), H5S_ALL, H5S_ALL, H5P_DEFAULT,
+                                      buf) >= 0)) {
+            stf_state_put_owned(st, name, type, (size_t)n, buf);
+            rc = st->failed ? -1 : 0;
+        } else {
+            free(buf);
+        }
+    }
+    close_id(s);
+    close_id(t);
+    close_id(d);
+    return rc;
+}
+
+int stf_h5_read_checkpoint(const char *path, stf_state *st, char *err, size_t errlen)
+{
+    memset(st, 0, sizeof *st);
+    H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+    hid_t file = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
+    if (file < 0) {
+        fmt_err(err, errlen, "%s: not a readable HDF5 file", path);
+        return -1;
+    }
+    const char *which = H5Lexists(file, CKPT_NEW, H5P_DEFAULT) > 0   ? CKPT_NEW
+                        : H5Lexists(file, CKPT_NAME, H5P_DEFAULT) > 0 ? CKPT_NAME
+                                                                      : NULL;
+    if (!which) {
+        H5Fclose(file);
+        return 1;
+    }
+    hid_t g = H5Gopen2(file, which, H5P_DEFAULT);
+    name_list l = {0};
+    int rc = g >= 0 && list_names(g, &l) == 0 ? 0 : -1;
+    for (int k = 0; rc == 0 && k < l.count; k++) rc = read_entry(g, l.names[k], st);
+    free_names(l.names, l.count);
+    close_id(g);
+    H5Fclose(file);
+    if (rc != 0) {
+        fmt_err(err, errlen, "%s: cannot read /%s", path, which);
+        stf_state_free(st);
+    }
+    return rc;
+}
+
+/* Cuts every series of every body to rows; -1 if one is shorter. */
+static int truncate_bodies(hid_t file, long rows)
+{
+    if (H5Lexists(file, "bodies", H5P_DEFAULT) <= 0) return 0; /* a scene without bodies */
+    hid_t g = H5Gopen2(file, "bodies", H5P_DEFAULT);
+    name_list l;
+    if (g < 0 || list_names(g, &l) != 0) {
+        close_id(g);
+        return -1;
+    }
+    int rc = 0;
+    for (int b = 0; b < l.count && rc == 0; b++) {
+        hid_t body = H5Gopen2(g, l.names[b], H5P_DEFAULT);
+        for (int s = 0; s < BODY_SERIES && rc == 0; s++) {
+            hid_t d = body < 0 ? -1 : H5Dopen2(body, body_names[s], H5P_DEFAULT);
+            hid_t sp = d < 0 ? -1 : H5Dget_space(d);
+            hsize_t dims[2] = {0, 0};
+            int rank = sp < 0 ? -1 : H5Sget_simple_extent_dims(sp, dims, NULL);
+            rc = rank >= 1 && dims[0] >= (hsize_t)rows ? 0 : -1;
+            dims[0] = (hsize_t)rows;
+            if (rc == 0 && H5Dset_extent(d, dims) < 0) rc = -1;
+            close_id(sp);
+            close_id(d);
+        }
+        close_id(body);
+    }
+    free_names(l.names, l.count);
+    H5Gclose(g);
+    return rc;
+}
+
+/* Checks that frames 0..frames-1 are complete and remembers them (for the sidecar). On
+ * success drop holds the root's names with those of the later frames first (drop->count of
+ * them; free with free_names(drop->names, drop->cap)). */
+static int keep_frames(stf_h5 *h, int frames, name_list *drop)
+{
+    memset(drop, 0, sizeof *drop);
+    name_list root;
+    if (list_names(h->file, &root) != 0) return -1;
+    int m = 0;
+    for (int i = 0; i < root.count; i++) {
+        if (frame_step(root.names[i]) >= frames) {
+            char *t = root.names[m];
+            root.names[m++] = root.names[i];
+            root.names[i] = t;
+        }
+    }
+    int rc = 0;
+    for (int k = 0; k < frames && rc == 0; k++) {
+        char gname[32];
+        rframe fr = {k, 0, 0};
+        snprintf(gname, sizeof gname, FRAME_PREFIX "%d", k);
+        if (H5Lexists(h->file, gname, H5P_DEFAULT) <= 0 || probe_frame(h->file, gname, &fr) != 0) {
+            rc = -1;
+            break;
+        }
+        hid_t g = H5Gopen2(h->file, gname, H5P_DEFAULT);
+        int has_khist = g >= 0 && H5Lexists(g, "khist", H5P_DEFAULT) > 0;
+        int has_id = g >= 0 && H5Lexists(g, "id", H5P_DEFAULT) > 0;
+        close_id(g);
+        rc = remember_frame(h, fr.t, fr.n, has_khist, has_id);
+    }
+    if (rc != 0) {
+        free_names(root.names, root.count);
+        return -1;
+    }
+    drop->names = root.names;
+    drop->count = m;
+    drop->cap = root.count;
+    return 0;
+}
+
+int stf_h5_open_resume(const char *path, int frames, long body_rows, stf_h5 **out, char *err,
+                       size_t errlen)
+{
+    *out = NULL;
+    H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+    stf_h5 *h = calloc(1, sizeof *h);
+    if (!h || !(h->path = dup_str(path))) {
+        free(h);
+        fmt_err(err, errlen, "%s: out of memory", path);
+        return -1;
+    }
+    hid_t fapl = no_eviction_fapl();
+    h->file = fapl < 0 ? -1 : H5Fopen(path, H5F_ACC_RDWR, fapl);
+    close_id(fapl);
+    if (h->file < 0) {
+        fmt_err(err, errlen, "%s: cannot open the HDF5 file for writing", path);
+        free_writer(h);
+        return -1;
+    }
+    name_list drop;
+    if (frames < 1 || keep_frames(h, frames, &drop) != 0) {
+        fmt_err(err, errlen, "%s: the %d frames the checkpoint follows are not all there", path,
+                frames);
+        stf_h5_abort(h);
+        return -1;
+    }
+    int rc = 0;
+    for (int i = 0; i < drop.count && rc == 0; i++)
+        rc = H5Ldelete(h->file, drop.names[i], H5P_DEFAULT) < 0 ? -1 : 0;
+    free_names(drop.names, drop.cap);
+    if (rc == 0) rc = truncate_bodies(h->file, body_rows);
+    if (rc == 0 && (H5Aexists(h->file, "exit_status") > 0 &&
+                    H5Adelete(h->file, "exit_status") < 0))
+        rc = -1;
+    if (rc == 0) rc = unlink_if_there(h->file, "metrics");
+    if (rc == 0 && flush_and_bound(h) < 0) rc = -1;
+    if (rc != 0) {
+        fmt_err(err, errlen, "%s: cannot cut the file back to its checkpoint", path);
+        stf_h5_abort(h);
+        return -1;
+    }
+    *out = h;
+    return 0;
 }

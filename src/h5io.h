@@ -8,6 +8,7 @@
  *                         quaternion[N][4] (w x y z), velocity[N][3],
  *                         angular_velocity[N][3], fluid_force[N][3]
  *   /metrics              string attribute "json"
+ *   /checkpoint           while a run goes: its state for `stf run --resume` (see below)
  * plus an XDMF sidecar OUT.xmf next to OUT.h5 (written by stf_h5_close) for ParaView.
  *
  * The file is flushed after every frame and body row, so a killed run leaves a file that
@@ -67,6 +68,28 @@ int stf_h5_close(stf_h5 *h, char *err, size_t errlen);
 
 /* Closes the file without a sidecar and frees h (error paths). NULL is a no-op. */
 void stf_h5_abort(stf_h5 *h);
+
+/* ---- checkpoints (`stf run --resume`, see state.h) ----
+ * /checkpoint holds one dataset per state entry (float64, float32, int32 or int64, 1-D,
+ * uncompressed). It is replaced so that a kill at any moment leaves one complete
+ * checkpoint: the new group is written unlinked and flushed, linked as /checkpoint.new and
+ * flushed, then /checkpoint is removed, the new one renamed, and flushed again. A reader
+ * prefers /checkpoint.new when it exists (the kill came between the two). */
+struct stf_state;
+/* Writes st as the new checkpoint. Returns 0 or -1. */
+int stf_h5_write_checkpoint(stf_h5 *h, const struct stf_state *st);
+/* Removes the checkpoint (a run that ended needs none). Returns 0 or -1. */
+int stf_h5_delete_checkpoint(stf_h5 *h);
+/* Reads the checkpoint of the output file path into st (owning its arrays). Returns 0; 1
+ * when the file has none; -1 with "PATH: why" in err. */
+int stf_h5_read_checkpoint(const char *path, struct stf_state *st, char *err, size_t errlen);
+/* Opens an existing output to continue it from a checkpoint: keeps frames 0..frames-1 and
+ * the first body_rows rows of every body series and drops what was written after them (a
+ * run killed after its checkpoint); removes the end-of-run attributes (exit_status, /metrics)
+ * so that a kill of the resumed run leaves a file that says it was killed. Returns 0, or -1
+ * with "PATH: why" in err (the file is not changed unless its kept frames are all there). */
+int stf_h5_open_resume(const char *path, int frames, long body_rows, stf_h5 **out, char *err,
+                       size_t errlen);
 
 /* ---- reader ---- */
 

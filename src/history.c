@@ -180,3 +180,10 @@ size_t history_bytes(const stf_history *h)
     return (size_t)h->n_alloc * ((size_t)h->cap * 3 * sizeof(float) + 3 * sizeof(double)) +
            (size_t)h->cap * sizeof(double);
 }
+
+int history_set_slots(stf_history *h, int cap)
+{
+    while (h->window == 0 && h->cap < cap)
+        if (grow_slots(h) != 0) return -1;
+    return h->cap == cap ? 0 : -1;
+}

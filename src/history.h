@@ -43,6 +43,9 @@ double history_scale(double q, double dt);
 /* Reorders particles: new index i takes old index perm[i]. */
 int history_permute(stf_history *h, const int *perm, int n);
 size_t history_bytes(const stf_history *h);
+/* Full history: grows the ring to cap slots per particle (doubling, as pushes do), for a
+ * checkpoint that had that many. 0 / -1. */
+int history_set_slots(stf_history *h, int cap);
 
 /* history_soe.c: Eq. 3 over the full history with the interior weights fitted by `terms`
  * exponentials (O(terms) time and memory per particle, whatever the history length). */

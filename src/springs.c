@@ -307,3 +307,8 @@ size_t springs_bytes(const stf_springs *s)
     return (size_t)s->n_alloc * ((size_t)s->stride * 2 * (sizeof(int32_t) + sizeof(double)) +
                                  2 * sizeof(int32_t) + (size_t)s->nthreads * sizeof(int64_t) + sizeof(double));
 }
+
+int springs_reserve_stride(stf_springs *s, int n, int stride)
+{
+    return stride > s->stride ? widen(s, n, stride) : 0;
+}

@@ -35,5 +35,8 @@ int springs_step(struct stf_fluid *f, double dt);
 int springs_permute(stf_springs *s, const int32_t *perm, const int32_t *inv, int n);
 long springs_total(const stf_springs *s, int n);
 size_t springs_bytes(const stf_springs *s);
+/* Widens the rows of n particles to stride slots if they are narrower (checkpoints restore
+ * the stride they had). 0 / -1. */
+int springs_reserve_stride(stf_springs *s, int n, int stride);
 
 #endif

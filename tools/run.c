@@ -11,6 +11,7 @@
 #include "cli.h"
 #include "h5io.h"
 #include "metrics.h"
+#include "state.h"
 #include "stf_sim.h"
 
 typedef struct run_args {
@@ -19,7 +20,11 @@ typedef struct run_args {
     int nov;
     double duration; /* s, 0: the scene's */
     int threads, quiet;
+    int resume;        /* --resume: continue OUT.h5 from its checkpoint */
+    double checkpoint; /* wall-clock s between checkpoints; < 0: none */
 } run_args;
+
+enum { DEFAULT_CHECKPOINT_SECONDS = 60 };
 
 static volatile sig_atomic_t interrupted;
 static void on_signal(int sig) { interrupted = sig; }
@@ -33,6 +38,7 @@ static int bad_flag(const char *msg, const char *arg)
 static int parse_args(int argc, char **argv, run_args *a)
 {
     memset(a, 0, sizeof *a);
+    a->checkpoint = DEFAULT_CHECKPOINT_SECONDS;
     for (int i = 0; i < argc; i++) {
         const char *s = argv[i];
         int more = i + 1 < argc;
@@ -59,16 +65,40 @@ static int parse_args(int argc, char **argv, run_args *a)
             if (*end || t < 1 || t > 1024)
                 return bad_flag("--threads must be an integer in [1,1024], got", argv[i]);
             a->threads = (int)t;
-        } else if (!strcmp(s, "--quiet") || !strcmp(s, "-q")) a->quiet = 1;
+        } else if (!strcmp(s, "--checkpoint") && more) {
+            char *end;
+            a->checkpoint = strtod(argv[++i], &end);
+            if (!strcmp(argv[i], "off")) a->checkpoint = -1;
+            else if (*end || !(a->checkpoint >= 0) || !isfinite(a->checkpoint))
+                return bad_flag("--checkpoint must be wall-clock seconds >= 0 or 'off', got", argv[i]);
+        } else if (!strcmp(s, "--resume")) a->resume = 1;
+        else if (!strcmp(s, "--quiet") || !strcmp(s, "-q")) a->quiet = 1;
         else if (s[0] == '-') return bad_flag("unknown or incomplete option", s);
         else if (!a->scene) a->scene = s;
         else return bad_flag("unexpected argument", s);
     }
     if (!a->scene) {
-        fprintf(stderr, "stf: no scene file given\n");
+        fprintf(stderr, a->resume ? "stf: --resume needs OUT.h5, or SCENE [-o OUT.h5]\n"
+                                  : "stf: no scene file given\n");
+        return 2;
+    }
+    if (a->resume && a->duration > 0) {
+        fprintf(stderr, "stf: --duration cannot be combined with --resume (a resumed run keeps "
+                        "the duration it was started with)\n");
         return 2;
     }
     return 0;
+}
+
+/* 1 when path starts with the HDF5 signature. */
+static int is_hdf5(const char *path)
+{
+    static const unsigned char sig[8] = {0x89, 'H', 'D', 'F', '\r', '\n', 0x1a, '\n'};
+    unsigned char head[8] = {0};
+    FILE *fp = fopen(path, "rb");
+    size_t got = fp ? fread(head, 1, sizeof head, fp) : 0;
+    if (fp) fclose(fp);
+    return got == sizeof head && !memcmp(head, sig, sizeof sig);
 }
 
 /* Refuses an output path that would destroy something that is not a previous output: the
@@ -83,12 +113,7 @@ static int check_output(const char *out, const char *scene)
         return 2;
     }
     if (!S_ISREG(so.st_mode) || so.st_size == 0) return 0; /* create reports directories */
-    static const unsigned char sig[8] = {0x89, 'H', 'D', 'F', '\r', '\n', 0x1a, '\n'};
-    unsigned char head[8] = {0};
-    FILE *fp = fopen(out, "rb");
-    size_t got = fp ? fread(head, 1, sizeof head, fp) : 0;
-    if (fp) fclose(fp);
-    if (got == sizeof head && !memcmp(head, sig, sizeof sig)) return 0;
+    if (is_hdf5(out)) return 0;
     fprintf(stderr, "stf: %s: exists and is not an HDF5 file; not overwriting it (remove it or "
                     "choose another -o)\n", out);
     return 2;
@@ -103,10 +128,11 @@ static char *default_out(const stf_scene *sc)
 }
 
 /* Root attributes a reader needs to make sense of the file. */
-static int write_header(stf_h5 *h, const stf_sim *sim)
+static int write_header(stf_h5 *h, const stf_sim *sim, double duration)
 {
     const stf_scene *sc = sim->scene;
     int rc = stf_h5_attr_string(h, "scene", sc->text ? sc->text : "");
+    rc |= stf_h5_attr_double(h, "duration", duration); /* s, what --resume continues to */
     rc |= stf_h5_attr_string(h, "scene_path", sc->path);
     rc |= stf_h5_attr_string(h, "version", STF_VERSION);
     char params[4096];
@@ -208,75 +234,186 @@ static int hold_expectations(const stf_scene *sc, const stf_metrics *m)
     return failed;
 }
 
-static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metrics *m)
+/* Solver statistics of the Carreau-Yasuda model: per frame (attributes of /Step#N: the
+ * steps since the frame before) and for the run (root attributes). Plain doubles, so that a
+ * checkpoint carries them as one array. */
+typedef struct solver_sums {
+    double fr_it_max, fr_it_sum, fr_err_max, fr_cg_max, fr_cg_sum, fr_n;
+    double run_it_max, run_it_sum, run_err_max, run_cg_max, run_cg_sum;
+} solver_sums;
+enum { SOLVER_SUMS = sizeof(solver_sums) / sizeof(double) };
+
+/* What a run loop needs beyond the simulation to continue: written with each checkpoint. */
+typedef struct run_progress {
+    int64_t frames;    /* frames in the file */
+    int64_t body_rows; /* rows of each body series */
+    int64_t steps;     /* steps the run takes in all */
+    double wall;       /* s, wall-clock time of the sessions before this one */
+    solver_sums sums;
+} run_progress;
+
+static void add_solver_stats(const stf_sim *sim, solver_sums *u)
+{
+    stf_solver_stats st;
+    stf_fluid_solver_stats(sim->fluid, &st);
+    u->fr_it_max = st.pressure_iterations > u->fr_it_max ? st.pressure_iterations : u->fr_it_max;
+    u->fr_err_max = st.density_error > u->fr_err_max ? st.density_error : u->fr_err_max;
+    u->fr_cg_max = st.viscosity_iterations > u->fr_cg_max ? st.viscosity_iterations : u->fr_cg_max;
+    u->fr_it_sum += st.pressure_iterations, u->fr_cg_sum += st.viscosity_iterations, u->fr_n++;
+    u->run_it_sum += st.pressure_iterations, u->run_cg_sum += st.viscosity_iterations;
+}
+
+static void frame_solver_stats(stf_h5 *h, solver_sums *u)
+{
+    if (u->fr_n <= 0) return;
+    stf_h5_frame_attr_double(h, "pressure_iterations_max", u->fr_it_max);
+    stf_h5_frame_attr_double(h, "pressure_iterations_mean", u->fr_it_sum / u->fr_n);
+    stf_h5_frame_attr_double(h, "density_error_max", u->fr_err_max);
+    stf_h5_frame_attr_double(h, "viscosity_iterations_max", u->fr_cg_max);
+    stf_h5_frame_attr_double(h, "viscosity_iterations_mean", u->fr_cg_sum / u->fr_n);
+    u->run_it_max = u->fr_it_max > u->run_it_max ? u->fr_it_max : u->run_it_max;
+    u->run_err_max = u->fr_err_max > u->run_err_max ? u->fr_err_max : u->run_err_max;
+    u->run_cg_max = u->fr_cg_max > u->run_cg_max ? u->fr_cg_max : u->run_cg_max;
+    u->fr_it_max = u->fr_it_sum = u->fr_err_max = u->fr_cg_max = u->fr_cg_sum = u->fr_n = 0;
+}
+
+static int write_checkpoint(stf_h5 *h, const stf_sim *sim, const run_progress *p, double wall)
+{
+    stf_state st = {0};
+    int rc = stf_sim_save_state(sim, &st);
+    stf_state_put_i64(&st, "run.frames", p->frames);
+    stf_state_put_i64(&st, "run.body_rows", p->body_rows);
+    stf_state_put_i64(&st, "run.steps", p->steps);
+    stf_state_put_f64(&st, "run.wall_seconds", p->wall + wall);
+    stf_state_put(&st, "run.solver_sums", STF_STATE_F64, SOLVER_SUMS, &p->sums);
+    if (rc == 0) rc = stf_h5_write_checkpoint(h, &st);
+    stf_state_free(&st);
+    return rc;
+}
+
+/* The run's own part of a checkpoint (the simulation's is loaded by stf_sim_load_state). */
+static int load_progress(const stf_state *st, run_progress *p, char *err, size_t errlen)
+{
+    return stf_state_get_i64(st, "run.frames", &p->frames, err, errlen) ||
+                   stf_state_get_i64(st, "run.body_rows", &p->body_rows, err, errlen) ||
+                   stf_state_get_i64(st, "run.steps", &p->steps, err, errlen) ||
+                   stf_state_get_f64(st, "run.wall_seconds", &p->wall, err, errlen) ||
+                   stf_state_get(st, "run.solver_sums", STF_STATE_F64, SOLVER_SUMS, &p->sums, err,
+                                 errlen)
+               ? -1 : 0;
+}
+
+/* Builds the simulation and its output: a new file, or (resume != NULL) the state and file
+ * of the checkpoint. Returns 0, or an exit code with a message. */
+static int start_run(const stf_scene *sc, const char *out, const stf_state *resume,
+                     double duration, stf_sim **sim, stf_h5 **h, run_progress *p, frame_buf *b)
 {
     char err[1024];
-    stf_sim *sim;
-    if (stf_sim_create(sc, &sim, err, sizeof err) != 0) {
+    if (stf_sim_create(sc, sim, err, sizeof err) != 0) {
         fprintf(stderr, "%s\n", err);
         return 2;
     }
-    stf_h5 *h;
-    if (stf_h5_create(out, &h, err, sizeof err) != 0) {
-        fprintf(stderr, "stf: cannot write the output: %s\n", err);
-        stf_sim_destroy(sim);
+    int n = stf_fluid_count((*sim)->fluid);
+    *b = (frame_buf){malloc((size_t)n * 3 * sizeof(double) + 1), malloc((size_t)n * 3 * sizeof(double) + 1),
+                     malloc((size_t)n * sizeof(float) + 1), malloc((size_t)n * sizeof(int32_t) + 1)};
+    if (!b->x || !b->v || !b->k || !b->id) {
+        fprintf(stderr, "stf: out of memory\n");
         return 2;
     }
-    int n = stf_fluid_count(sim->fluid);
-    frame_buf b = {malloc((size_t)n * 3 * sizeof(double) + 1), malloc((size_t)n * 3 * sizeof(double) + 1),
-                   malloc((size_t)n * sizeof(float) + 1), malloc((size_t)n * sizeof(int32_t) + 1)};
-    int rc = (b.x && b.v && b.k && b.id) ? write_header(h, sim) : -1;
+    if (resume) {
+        if (load_progress(resume, p, err, sizeof err) != 0 ||
+            stf_sim_load_state(*sim, resume, err, sizeof err) != 0) {
+            fprintf(stderr, "stf: %s: %s (not resuming; the file is unchanged)\n", out, err);
+            return 2;
+        }
+        if (p->steps != lround(duration / sc->dt) || p->frames < 1 || p->body_rows < 0 ||
+            p->frames > 0x7fffffff) {
+            fprintf(stderr, "stf: %s: the checkpoint is for a run of %ld steps, not %ld (not "
+                            "resuming; the file is unchanged)\n",
+                    out, (long)p->steps, lround(duration / sc->dt));
+            return 2;
+        }
+        if (stf_h5_open_resume(out, (int)p->frames, (long)p->body_rows, h, err, sizeof err) != 0) {
+            fprintf(stderr, "stf: cannot resume: %s\n", err);
+            return 2;
+        }
+        return 0;
+    }
+    if (stf_h5_create(out, h, err, sizeof err) != 0) {
+        fprintf(stderr, "stf: cannot write the output: %s\n", err);
+        return 2;
+    }
+    p->steps = lround(duration / sc->dt);
+    p->frames = 1;
+    p->body_rows = 1;
+    if (write_header(*h, *sim, duration) != 0 || write_frame(*h, *sim, b) != 0 ||
+        write_bodies(*h, *sim) != 0) {
+        fprintf(stderr, "stf: writing %s failed: %s\n", out, stf_h5_last_error(*h));
+        return 2;
+    }
+    return 0;
+}
+
+static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metrics *m,
+                    const stf_state *resume)
+{
+    char err[1024];
+    stf_sim *sim = NULL;
+    stf_h5 *h = NULL;
+    run_progress p;
+    memset(&p, 0, sizeof p);
+    frame_buf b = {0};
     double duration = a->duration > 0 ? a->duration : sc->duration;
-    long steps = lround(duration / sc->dt);
+    int status = start_run(sc, out, resume, duration, &sim, &h, &p, &b);
+    if (status != 0) {
+        stf_h5_abort(h);
+        free(b.x), free(b.v), free(b.k), free(b.id);
+        stf_sim_destroy(sim);
+        return status;
+    }
+    long steps = (long)p.steps, first = sim->steps + 1;
     long per_frame = lround(1.0 / (sc->frame_rate * sc->dt));
     if (per_frame < 1) per_frame = 1;
     long body_every = lround(0.002 / sc->dt); /* bodies at 500 Hz or every step */
     if (body_every < 1) body_every = 1;
-    if (rc == 0) rc = write_frame(h, sim, &b) | write_bodies(h, sim);
+    if (resume && !a->quiet)
+        fprintf(stderr, "stf: resuming %s at t = %.4f s (step %ld of %ld)\n", out, sim->time,
+                sim->steps, steps);
     signal(SIGINT, on_signal);
     signal(SIGTERM, on_signal);
-    double t0 = omp_get_wtime();
-    int status = rc ? 2 : 0;
-    /* Carreau-Yasuda solver statistics, per frame (attributes of /Step#N: the steps since the
-       frame before) and for the run (root attributes) */
+    double t0 = omp_get_wtime(), last_checkpoint = t0;
     int cy = sc->fluid.model == STF_MODEL_CARREAU_YASUDA;
-    double fr_it_max = 0, fr_it_sum = 0, fr_err_max = 0, fr_cg_max = 0, fr_cg_sum = 0, fr_n = 0;
-    double run_it_max = 0, run_it_sum = 0, run_err_max = 0, run_cg_max = 0, run_cg_sum = 0;
-    for (long s = 1; s <= steps && status == 0; s++) {
+    solver_sums *u = &p.sums;
+    for (long s = first; s <= steps && status == 0; s++) {
         int step_rc = stf_sim_step(sim);
-        if (cy && step_rc == 0) {
-            stf_solver_stats st;
-            stf_fluid_solver_stats(sim->fluid, &st);
-            fr_it_max = st.pressure_iterations > fr_it_max ? st.pressure_iterations : fr_it_max;
-            fr_err_max = st.density_error > fr_err_max ? st.density_error : fr_err_max;
-            fr_cg_max = st.viscosity_iterations > fr_cg_max ? st.viscosity_iterations : fr_cg_max;
-            fr_it_sum += st.pressure_iterations, fr_cg_sum += st.viscosity_iterations, fr_n++;
-            run_it_sum += st.pressure_iterations, run_cg_sum += st.viscosity_iterations;
-        }
+        if (cy && step_rc == 0) add_solver_stats(sim, u);
         if (step_rc != 0) {
             fprintf(stderr, "\nstf: numerical failure: %s; the last good frame is in %s\n",
                     stf_fluid_failure(sim->fluid), out);
             status = 3;
             break;
         }
-        if (s % body_every == 0 && write_bodies(h, sim) != 0) status = 2;
+        if (s % body_every == 0) {
+            if (write_bodies(h, sim) != 0) status = 2;
+            else p.body_rows++;
+        }
         if (s % per_frame == 0 || s == steps) {
             if (write_frame(h, sim, &b) != 0) status = 2;
-            if (cy && fr_n > 0) {
-                stf_h5_frame_attr_double(h, "pressure_iterations_max", fr_it_max);
-                stf_h5_frame_attr_double(h, "pressure_iterations_mean", fr_it_sum / fr_n);
-                stf_h5_frame_attr_double(h, "density_error_max", fr_err_max);
-                stf_h5_frame_attr_double(h, "viscosity_iterations_max", fr_cg_max);
-                stf_h5_frame_attr_double(h, "viscosity_iterations_mean", fr_cg_sum / fr_n);
-                run_it_max = fr_it_max > run_it_max ? fr_it_max : run_it_max;
-                run_err_max = fr_err_max > run_err_max ? fr_err_max : run_err_max;
-                run_cg_max = fr_cg_max > run_cg_max ? fr_cg_max : run_cg_max;
-                fr_it_max = fr_it_sum = fr_err_max = fr_cg_max = fr_cg_sum = fr_n = 0;
-            }
+            else p.frames++;
+            if (cy) frame_solver_stats(h, u);
             progress(a, sim, duration, omp_get_wtime() - t0);
-            if (interrupted) {
-                fprintf(stderr, "\nstf: interrupted at t = %.4f s; %s holds the run so far\n",
-                        sim->time, out);
+            /* a checkpoint every a->checkpoint wall seconds, and when interrupted: it only
+               reads the state, so the run's results do not depend on when it is taken */
+            double now = omp_get_wtime();
+            if (status == 0 && s < steps && a->checkpoint >= 0 &&
+                (interrupted || now - last_checkpoint >= a->checkpoint)) {
+                if (write_checkpoint(h, sim, &p, now - t0) != 0) status = 2;
+                last_checkpoint = now;
+            }
+            if (interrupted && status == 0) {
+                fprintf(stderr, "\nstf: interrupted at t = %.4f s; %s holds the run so far%s\n",
+                        sim->time, out,
+                        s < steps && a->checkpoint >= 0 ? " (continue it with stf run --resume)" : "");
                 status = 130;
             }
         }
@@ -287,21 +424,21 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
     stf_h5_attr_long(h, "steps", sim->steps);
     stf_h5_attr_long(h, "substeps", sim->substeps);
     stf_h5_attr_long(h, "spring_saturated_substeps", stf_fluid_saturated_steps(sim->fluid));
-    stf_h5_attr_double(h, "wall_seconds", wall);
+    stf_h5_attr_double(h, "wall_seconds", p.wall + wall); /* all sessions of the run */
     stf_h5_attr_double(h, "dt_min", sim->dt_min > 0 ? sim->dt_min : sc->dt);
     stf_h5_attr_double(h, "dt_max", sim->dt_max > 0 ? sim->dt_max : sc->dt);
     stf_h5_attr_string(h, "dt_control", sc->dt_fixed ? "fixed" : "adaptive");
     if (cy && sim->steps > 0) {
-        stf_h5_attr_double(h, "pressure_iterations_max", run_it_max);
-        stf_h5_attr_double(h, "pressure_iterations_mean", run_it_sum / (double)sim->steps);
-        stf_h5_attr_double(h, "density_error_max", run_err_max);
-        stf_h5_attr_double(h, "viscosity_iterations_max", run_cg_max);
-        stf_h5_attr_double(h, "viscosity_iterations_mean", run_cg_sum / (double)sim->steps);
+        stf_h5_attr_double(h, "pressure_iterations_max", u->run_it_max);
+        stf_h5_attr_double(h, "pressure_iterations_mean", u->run_it_sum / (double)sim->steps);
+        stf_h5_attr_double(h, "density_error_max", u->run_err_max);
+        stf_h5_attr_double(h, "viscosity_iterations_max", u->run_cg_max);
+        stf_h5_attr_double(h, "viscosity_iterations_mean", u->run_cg_sum / (double)sim->steps);
         if (!a->quiet)
             fprintf(stderr, "stf: carreau_yasuda: pressure iterations mean %.2f max %.0f, mean "
                     "density error max %.3g%% (eta %g%%), viscosity CG iterations mean %.1f max %.0f\n",
-                    run_it_sum / (double)sim->steps, run_it_max, 100 * run_err_max,
-                    100 * sc->fluid.cy.eta, run_cg_sum / (double)sim->steps, run_cg_max);
+                    u->run_it_sum / (double)sim->steps, u->run_it_max, 100 * u->run_err_max,
+                    100 * sc->fluid.cy.eta, u->run_cg_sum / (double)sim->steps, u->run_cg_max);
     }
     if (status == 2) fprintf(stderr, "stf: writing %s failed: %s\n", out, stf_h5_last_error(h));
     stf_h5_flush_for_reading(h);
@@ -313,17 +450,89 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
     /* how the run ended (0 done, 3 numerical failure, 130 interrupted, 2 write error): a
        file without it was killed; `stf sweep` resumes every run not ended by 0 or 3 */
     stf_h5_attr_long(h, "exit_status", status);
+    /* a run that ended (done, or a numerical failure it would repeat) has nothing to resume;
+       removed after exit_status is written, so a kill in between leaves a file that says so */
+    if ((status == 0 || status == 3) && stf_h5_delete_checkpoint(h) != 0 && status == 0) {
+        fprintf(stderr, "stf: %s: %s\n", out, stf_h5_last_error(h));
+        status = 2;
+        stf_h5_attr_long(h, "exit_status", status);
+    }
     if (stf_h5_close(h, err, sizeof err) != 0) {
         fprintf(stderr, "stf: %s\n", err);
         if (status == 0) status = 2;
     }
-    if (!a->quiet && sim->steps > 0)
+    long done = sim->steps - (first - 1);
+    if (!a->quiet && done > 0)
         fprintf(stderr, "stf: %ld steps of %d particles in %.2f s: %.3f ms/step, %.3g particle-steps/s\n",
-                sim->steps, stf_fluid_count(sim->fluid), wall, 1e3 * wall / (double)sim->steps,
-                (double)sim->steps * stf_fluid_count(sim->fluid) / wall);
+                done, stf_fluid_count(sim->fluid), wall, 1e3 * wall / (double)done,
+                (double)done * stf_fluid_count(sim->fluid) / wall);
     free(b.x), free(b.v), free(b.k), free(b.id);
     stf_sim_destroy(sim);
     return status;
+}
+
+/* --resume: finds the output and the scene (the scene given, which must be the one the file
+ * was written by, or the scene text stored in the file) and reads the checkpoint. Returns
+ * -1 to go on, or the exit code (0 for a run that already finished) with a message. The file
+ * is not changed here. */
+static int prepare_resume(const run_args *a, stf_scene **sc, char **own, const char **out,
+                          stf_state *st)
+{
+    char err[2048];
+    int from_file = is_hdf5(a->scene);
+    if (from_file && (a->out || a->nov)) {
+        fprintf(stderr, "stf: %s is an output file: resume it with `stf run --resume %s` (the "
+                        "scene and its --set/--unset are those stored in it)\n", a->scene, a->scene);
+        return 2;
+    }
+    if (!from_file) {
+        if (stf_scene_load(a->scene, a->ov, a->nov, sc, err, sizeof err) != 0) {
+            fprintf(stderr, "%s\n", err);
+            return 2;
+        }
+        if (!a->out) *own = default_out(*sc);
+    }
+    *out = from_file ? a->scene : a->out ? a->out : *own;
+    stf_h5r *r;
+    if (stf_h5r_open(*out, &r, err, sizeof err) != 0) {
+        fprintf(stderr, "stf: cannot resume: %s\n", err);
+        return 2;
+    }
+    double ended = -1;
+    int has_end = stf_h5r_attr_double(r, "exit_status", &ended) == 0;
+    char *text = stf_h5r_attr_string(r, "scene"), *path = stf_h5r_attr_string(r, "scene_path");
+    double duration = 0;
+    int rc = -1;
+    if (!text || stf_h5r_attr_double(r, "duration", &duration) != 0 || !(duration > 0)) {
+        fprintf(stderr, "stf: %s: no scene text or duration stored (written by an stf before "
+                        "checkpoints?); cannot resume\n", *out);
+        rc = 2;
+    } else if (has_end && (ended == 0 || ended == 3)) {
+        fprintf(stderr, "stf: %s: the run already ended (exit status %.0f%s); nothing to resume\n",
+                *out, ended, ended == 3 ? ", a numerical failure that resuming would repeat" : "");
+        rc = ended == 0 ? 0 : 3;
+    } else if (!from_file && strcmp(text, (*sc)->text ? (*sc)->text : "") != 0) {
+        fprintf(stderr, "stf: %s was written by another scene than %s with these --set/--unset "
+                        "(the scene text stored in it differs); not resuming (`stf run --resume "
+                        "%s` takes the stored scene)\n", *out, a->scene, *out);
+        rc = 2;
+    } else if (from_file &&
+               stf_scene_load_string(path ? path : *out, text, NULL, 0, sc, err, sizeof err) != 0) {
+        fprintf(stderr, "%s\n", err);
+        rc = 2;
+    }
+    free(text);
+    free(path);
+    stf_h5r_close(r);
+    if (rc >= 0) return rc;
+    ((run_args *)a)->duration = duration;
+    int got = stf_h5_read_checkpoint(*out, st, err, sizeof err);
+    if (got == 1)
+        fprintf(stderr, "stf: %s has no checkpoint (the run was stopped before its first one); "
+                        "run it again without --resume\n", *out);
+    else if (got != 0)
+        fprintf(stderr, "stf: cannot resume: %s\n", err);
+    return got == 0 ? -1 : 2;
 }
 
 int cli_run(int argc, char **argv, int check)
@@ -332,17 +541,32 @@ int cli_run(int argc, char **argv, int check)
     if (parse_args(argc, argv, &a) != 0) return 2;
     if (a.threads) stf_set_threads(a.threads);
     char err[2048];
-    stf_scene *sc;
-    if (stf_scene_load(a.scene, a.ov, a.nov, &sc, err, sizeof err) != 0) {
-        fprintf(stderr, "%s\n", err);
-        return 2;
-    }
-    char *own = a.out ? NULL : default_out(sc);
-    const char *out = a.out ? a.out : own;
+    stf_scene *sc = NULL;
+    char *own = NULL;
+    const char *out = NULL;
+    stf_state st = {0};
     stf_metrics m;
-    int status = check_output(out, a.scene);
-    if (status == 0) status = simulate(&a, sc, out, &m);
-    if (check && (status == 0 || status == 3)) {
+    int status;
+    if (a.resume) {
+        status = prepare_resume(&a, &sc, &own, &out, &st);
+        if (status < 0) status = simulate(&a, sc, out, &m, &st);
+        else if (check && sc && (status == 0 || status == 3) && /* ended before: its metrics */
+                 stf_metrics_compute(out, &m, err, sizeof err) != 0) {
+            fprintf(stderr, "stf: %s\n", err);
+            status = 2;
+        }
+    } else {
+        if (stf_scene_load(a.scene, a.ov, a.nov, &sc, err, sizeof err) != 0) {
+            fprintf(stderr, "%s\n", err);
+            return 2;
+        }
+        own = a.out ? NULL : default_out(sc);
+        out = a.out ? a.out : own;
+        status = check_output(out, a.scene);
+        if (status == 0) status = simulate(&a, sc, out, &m, NULL);
+    }
+    stf_state_free(&st);
+    if (check && sc && (status == 0 || status == 3)) {
         int failed = hold_expectations(sc, &m);
         if (status == 0) status = failed ? 1 : 0;
         printf("%s: %d of %d expectations held\n", sc->name, sc->nexpect - failed, sc->nexpect);

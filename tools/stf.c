@@ -18,7 +18,11 @@ static void usage(FILE *to)
 {
     fputs("usage:\n"
           "  stf run SCENE [-o OUT.h5] [--set KEY=VALUE]... [--unset KEY]... [--duration S]\n"
-          "              [--threads N] [--quiet]\n"
+          "              [--threads N] [--quiet] [--checkpoint S|off]\n"
+          "              (--checkpoint: wall-clock seconds between checkpoints, default 60;\n"
+          "              0: every frame; also taken on SIGINT/SIGTERM)\n"
+          "  stf run --resume OUT.h5 | stf run SCENE [-o OUT.h5] --resume   (continue a stopped\n"
+          "              run from its checkpoint, bit-identical; scene from the file or checked)\n"
           "  stf check SCENE [-o OUT.h5] [--set ...] [--unset ...] [--duration S] [--threads N]\n"
           "  stf report OUT.h5 [--json]\n"
           "  stf render OUT.h5 [-o DIR] [--frames all|N|A:B|a,b,c] [--every K] [--color speed|khist|none]\n"
