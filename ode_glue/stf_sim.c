@@ -303,10 +303,19 @@ int stf_sim_step(stf_sim *s)
             vibrate(s, s->container, sc->nbodies, &sc->container.vibration, s->container_base, t,
                     dt);
         if (stf_ode_step(s->coupler, dt) != 0) return -1;
-        s->substeps++;
+        /* The Carreau-Yasuda solver splits the coupled step again by its own CFL: count the
+         * substeps the fluid took. */
+        double lo = dt, hi = dt;
+        long taken = 1;
+        if (sc->fluid.model == STF_MODEL_CARREAU_YASUDA) {
+            stf_solver_stats st;
+            stf_fluid_solver_stats(s->fluid, &st);
+            if (st.substeps > 0) taken = st.substeps, lo = st.dt_min, hi = st.dt_max;
+        }
+        s->substeps += taken;
+        if (s->dt_min == 0 || lo < s->dt_min) s->dt_min = lo;
+        if (hi > s->dt_max) s->dt_max = hi;
     }
-    if (s->dt_min == 0 || dt < s->dt_min) s->dt_min = dt;
-    if (dt > s->dt_max) s->dt_max = dt;
     s->steps++;
     s->time = s->steps * sc->dt;
     return 0;

@@ -22,7 +22,8 @@ typedef struct stf_sim {
     int removed;            /* particles removed at set-up because they overlapped bodies */
     long steps;             /* steps of the scene's dt taken */
     double time;            /* s, steps * dt */
-    long substeps;          /* substeps taken (>= steps; more when adaptive control split steps) */
+    long substeps;          /* substeps taken (>= steps; more when adaptive control split steps,
+                               or the Carreau-Yasuda solver by its CFL: the fluid's substeps) */
     double dt_min, dt_max;  /* s, shortest and longest substep taken (0 before the first) */
     dGeomID *geoms;         /* the space's geoms in their order after creation (checkpoints
                                name a geom by its index here) */
