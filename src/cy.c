@@ -889,7 +889,8 @@ int cy_describe(const stf_fluid *f, char *buf, size_t len)
 {
     const stf_cy_def *c = &f->def.cy;
     const double *per = f->def.periodic, *o = f->def.periodic_origin;
-    int k = snprintf(buf, len, "periodic: [%.9g, %.9g, %.9g]  # m, the period of each axis (0: none)\n"
+    int k = snprintf(buf, len,
+                     "periodic: [%.9g, %.9g, %.9g]  # m, the period of each axis (0: none)\n"
                      "periodic_origin: [%.9g, %.9g, %.9g]  # m\n",
                      per[0], per[1], per[2], o[0], o[1], o[2]);
     size_t used = k > 0 && (size_t)k < len ? (size_t)k : len;

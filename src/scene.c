@@ -946,7 +946,8 @@ static const char *const body_metrics[] = {
     "float_duration",     "rest_time", "rest_duration", NULL};
 static const char *const fluid_metrics[] = {
     "particles",     "escaped",           "max_speed", "com_rebound_height",
-    "finger_height", "surface_roughness", "final_com_height", "impact_time", "solid_duration", "splash_height", NULL};
+    "finger_height", "surface_roughness", "final_com_height", "impact_time", "solid_duration",
+    "splash_height", NULL};
 
 static int in_list(const char *s, const char *const *list)
 {
