@@ -109,7 +109,15 @@ static int make_container(stf_sim *s, char *err, size_t errlen)
         }
         dBodySetAutoDisableFlag(body, 0);
     }
+    /* Across a periodic axis (scene key container.periodic) the fluid wraps at the inner
+       box's faces: those walls are left out of ODE and moved 2 h beyond the seams for the
+       fluid, out of reach of every particle (the wall terms and collisions act within h) */
+    const double *per = s->scene->fluid.periodic;
+    double h = s->scene->fluid.h > 0 ? s->scene->fluid.h : 2 * s->scene->fluid.spacing;
+    double fluid_size[3] = {X + (per[0] > 0 ? 4 * h : 0), Y + (per[1] > 0 ? 4 * h : 0), H};
     for (int k = 0; k < 5; k++) {
+        if ((k == 1 || k == 2) && per[0] > 0) continue;
+        if ((k == 3 || k == 4) && per[1] > 0) continue;
         dGeomID g = dCreateBox(s->space, part[k].l[0], part[k].l[1], part[k].l[2]);
         if (body) {
             dGeomSetBody(g, body);
@@ -122,7 +130,7 @@ static int make_container(stf_sim *s, char *err, size_t errlen)
     memcpy(s->container_base, p, sizeof s->container_base);
     stf_ode_attach_def ad = {c->friction, c->stick};
     double origin[3] = {0, 0, 0};
-    if (stf_ode_attach_container(s->coupler, body, body ? origin : p, c->size, w, &ad, err,
+    if (stf_ode_attach_container(s->coupler, body, body ? origin : p, fluid_size, w, &ad, err,
                                  errlen) != 0)
         return 2;
     return 0;

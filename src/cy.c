@@ -889,7 +889,13 @@ double stf_fluid_cy_rest_density(const stf_fluid *f) { return f->cy ? f->cy->rho
 int cy_describe(const stf_fluid *f, char *buf, size_t len)
 {
     const stf_cy_def *c = &f->def.cy;
-    return snprintf(buf, len,
+    const double *per = f->def.periodic, *o = f->def.periodic_origin;
+    int k = snprintf(buf, len,
+                     "periodic: [%.9g, %.9g, %.9g]  # m, the period of each axis (0: none)\n"
+                     "periodic_origin: [%.9g, %.9g, %.9g]  # m\n",
+                     per[0], per[1], per[2], o[0], o[1], o[2]);
+    size_t used = k > 0 && (size_t)k < len ? (size_t)k : len;
+    return k + snprintf(buf + used, len - used,
                     "model: carreau_yasuda\nmu0: %.9g  # m^2/s\nmu_inf: %.9g  # m^2/s\n"
                     "K: %.9g  # s\nalpha: %.9g\nn: %.9g\neta: %.9g\n"
                     "min_pressure_iterations: %d\nmax_pressure_iterations: %d\n"

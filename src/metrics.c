@@ -161,10 +161,21 @@ static int inside_first(double *x, int n, const run_geometry *g)
     return m;
 }
 
+/* 99th percentile of the particle heights of a frame (x: 3n positions; tmp: n doubles). */
+static double top_percentile(const double *x, int n, double *tmp)
+{
+    if (n <= 0) return NAN;
+    for (int i = 0; i < n; i++) tmp[i] = x[3 * i + 2];
+    qsort(tmp, (size_t)n, sizeof *tmp, cmp_double);
+    double at = 0.99 * (n - 1);
+    int lo = (int)floor(at), hi = lo + 1 < n ? lo + 1 : lo;
+    return tmp[lo] + (at - lo) * (tmp[hi] - tmp[lo]);
+}
+
 static int fluid_metrics(const stf_h5r *r, const run_geometry *g, stf_metrics *m)
 {
     int nf = stf_h5r_frames(r);
-    double com_lowest = INFINITY, speed_prev = NAN, rg0 = NAN;
+    double com_lowest = INFINITY, top_lowest = INFINITY, speed_prev = NAN, rg0 = NAN;
     int second_half = nf / 2, counted = 0;
     m->impact_time = m->solid_duration = NAN;
     for (int f = 0; f < nf; f++) {
@@ -200,6 +211,10 @@ static int fluid_metrics(const stf_h5r *r, const run_geometry *g, stf_metrics *m
         if (n > 0) {
             if (com < com_lowest) com_lowest = com;
             if (com - com_lowest > m->com_rebound_height) m->com_rebound_height = com - com_lowest;
+            double *z = malloc((size_t)n * sizeof *z), top = z ? top_percentile(x, n, z) : NAN;
+            free(z);
+            if (top < top_lowest) top_lowest = top;
+            if (top - top_lowest > m->splash_height) m->splash_height = top - top_lowest;
         }
         if (f >= second_half) {
             double rough = 0;
@@ -357,6 +372,8 @@ char *stf_metrics_json(const stf_metrics *m)
     put_num(&b, m->impact_time);
     put(&b, ", \"solid_duration\": ");
     put_num(&b, m->solid_duration);
+    put(&b, ", \"splash_height\": ");
+    put_num(&b, m->splash_height);
     put(&b, "}}\n");
     return b.s;
 }
@@ -390,6 +407,7 @@ int stf_metrics_get(const stf_metrics *m, const char *key, double *v)
         else if (!strcmp(f, "final_com_height")) *v = m->final_com_height;
         else if (!strcmp(f, "impact_time")) *v = m->impact_time;
         else if (!strcmp(f, "solid_duration")) *v = m->solid_duration;
+        else if (!strcmp(f, "splash_height")) *v = m->splash_height;
         else return -1;
         return 0;
     }

@@ -18,6 +18,10 @@
  *   the surface before it sinks.
  * - fluid.com_rebound_height: the largest rise of the fluid's centre of mass above any
  *   earlier height of it (a dropped blob's rebound; 0 if it never rises).
+ * - fluid.splash_height: the same rise for the fluid's top, the 99th percentile of the
+ *   particle heights per frame (so a few flying droplets do not count): how far the top of
+ *   the fluid climbs again after it has come down (a splash, a crown, a jet; 0 if it only
+ *   comes down or settles).
  * - fluid.finger_height: the fluid's surface as columns (cells of 2 spacings in x, y; a
  *   column's height is its highest particle; with a container, only the particles that
  *   have not escaped it). Per frame, the 95th percentile of the column
@@ -70,6 +74,7 @@ typedef struct stf_metrics {
     double final_com_height;   /* m */
     double impact_time;        /* s, NAN if never */
     double solid_duration;     /* s, NAN without an impact */
+    double splash_height;      /* m */
 } stf_metrics;
 
 /* Computes the metrics of the run in path. Returns 0, or 2 with a message (bad file). */

@@ -658,10 +658,59 @@ static int parse_vibration(loader *L, const mapv *m, int motion, stf_vibration *
     return 0;
 }
 
+/* container.periodic: a list of horizontal axes (x, y) along which the fluid wraps, with the
+ * container's inner box as the period; only for the carreau_yasuda model and a static
+ * container (ode_glue moves the walls across such an axis out of the fluid's reach). */
+static int parse_periodic(loader *L, const mapv *m, stf_container_def *c)
+{
+    static const char *const axes[] = {"x", "y", NULL};
+    struct fy_node *k, *v = lookup(m, "periodic", &k);
+    char full[160], elem[176], buf[16];
+    if (!k) return 0;
+    join(full, sizeof full, m->path, "periodic");
+    if (is_null(v) || !fy_node_is_sequence(v))
+        return fail(L, v, k, full, "expected a list of axes (allowed: x, y)");
+    stf_fluid_def *f = &L->s->fluid;
+    int n = fy_node_sequence_item_count(v), on[2] = {0, 0};
+    for (int i = 0; i < n; i++) {
+        struct fy_node *item = fy_node_sequence_get_by_index(v, i);
+        join_index(elem, sizeof elem, full, i);
+        int a = -1;
+        if (scalar_text(item, buf, sizeof buf))
+            for (int j = 0; axes[j]; j++)
+                if (!strcmp(buf, axes[j])) a = j;
+        if (a < 0)
+            return fail(L, item, k, elem,
+                        "expected an axis (allowed: x, y; z is bounded by the floor)");
+        if (on[a]) return fail(L, item, k, elem, "axis %s given twice", axes[a]);
+        on[a] = 1;
+    }
+    if (n == 0) return 0;
+    if (f->model != STF_MODEL_CARREAU_YASUDA)
+        return fail_key(L, m, "periodic", "only with fluid.model: carreau_yasuda (the "
+                                          "clavet_stf model has no periodic axes)");
+    if (c->motion != STF_MOTION_STATIC)
+        return fail_key(L, m, "periodic", "only with a static container (motion: static)");
+    double h = f->h > 0 ? f->h : 2 * f->spacing;
+    for (int a = 0; a < 2; a++) {
+        if (!on[a]) continue;
+        if (c->size[a] < 3 * h) {
+            char what[160];
+            snprintf(what, sizeof what,
+                     "the period along %s (container.size.%d = %g m) must be >= 3 h = %g m",
+                     axes[a], a, c->size[a], 3 * h);
+            return fail_value(L, m, "periodic", what);
+        }
+        f->periodic[a] = c->size[a];
+        f->periodic_origin[a] = c->position[a] - c->size[a] / 2;
+    }
+    return 0;
+}
+
 static int parse_container(loader *L, const mapv *top)
 {
     static const char *const keys[] = {"size",   "wall", "position",  "friction", "stick",
-                                       "motion", "mass", "vibration", NULL};
+                                       "motion", "mass", "vibration", "periodic", NULL};
     stf_container_def *c = &L->s->container;
     struct fy_node *k, *v = lookup(top, "container", &k);
     mapv m;
@@ -681,6 +730,7 @@ static int parse_container(loader *L, const mapv *top)
     if (c->motion == STF_MOTION_DYNAMIC && !r) return missing(L, &m, "mass", " (motion: dynamic)");
     if (c->motion != STF_MOTION_DYNAMIC && r)
         return fail_key(L, &m, "mass", "only allowed with motion: dynamic");
+    if (parse_periodic(L, &m, c)) return SCENE_BAD;
     return parse_vibration(L, &m, c->motion, &c->vibration);
 }
 
@@ -899,7 +949,8 @@ static const char *const body_metrics[] = {
     "float_duration",     "rest_time", "rest_duration", NULL};
 static const char *const fluid_metrics[] = {
     "particles",     "escaped",           "max_speed", "com_rebound_height",
-    "finger_height", "surface_roughness", "final_com_height", "impact_time", "solid_duration", NULL};
+    "finger_height", "surface_roughness", "final_com_height", "impact_time", "solid_duration",
+    "splash_height", NULL};
 
 static int in_list(const char *s, const char *const *list)
 {
@@ -1021,6 +1072,9 @@ static int parse_scene(loader *L)
     if (parse_fluid(L, &top) || parse_effects(L, &top) || parse_container(L, &top) ||
         check_blocks_inside(L) || parse_bodies(L, &top) || parse_expect(L, &top))
         return SCENE_BAD;
+    if (s->nbodies > 0 && (s->fluid.periodic[0] > 0 || s->fluid.periodic[1] > 0))
+        return fail_key(L, &top, "bodies",
+                        "not with container.periodic (bodies do not wrap across the seams)");
     return 0;
 }
 

@@ -149,9 +149,10 @@ typedef struct stf_fluid_def {
        the Carreau-Yasuda model runs gravity and its own solver, and no other effect */
     int model;             /* enum stf_model */
     stf_cy_def cy;         /* Carreau-Yasuda parameters (model STF_MODEL_CARREAU_YASUDA) */
-    /* periodic domain (Carreau-Yasuda model only, API only): along axis a with
-       periodic[a] > 0 (m, >= 3 h), positions wrap into [periodic_origin[a],
-       periodic_origin[a] + periodic[a]) and neighbours are found across the seam */
+    /* periodic domain (Carreau-Yasuda model only; scene key container.periodic): along
+       axis a with periodic[a] > 0 (m, >= 3 h), positions wrap into [periodic_origin[a],
+       periodic_origin[a] + periodic[a]) and neighbours are found across the seam; solids
+       (a container's walls) across that axis must stay out of the fluid's reach */
     double periodic[3];
     double periodic_origin[3];
 } stf_fluid_def;

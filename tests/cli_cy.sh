@@ -1,7 +1,8 @@
 # cli_cy.sh - the Carreau-Yasuda scenes through the command-line tool, at test resolution:
 #   - bad Carreau-Yasuda input exits 2 naming FILE:LINE:COL and the key, output untouched;
 #   - the block into a pool: the Newtonian block splashes and the non-Newtonian one does not
-#     (their expect blocks hold the ordering of fluid.com_rebound_height around 5 mm);
+#     (their expect blocks hold fluid.splash_height above 0.3 m and below 0.1 m, and the
+#     Newtonian one is more than 3x the other);
 #   - the shear-thickening collapse at dt = 3e-4 s: implicit viscosity runs, explicit stops
 #     with exit 3, a message naming the step and 'carreau_yasuda viscosity (explicit)', and
 #     a readable file up to the last good frame;
@@ -51,11 +52,18 @@ sed 's/  model: carreau_yasuda/  model: clavet_stf/' "$SC/cy_falling_column.yaml
 line=$(grep -n -m1 'carreau_yasuda: {' nomodel.yaml | cut -d: -f1)
 bad nomodel "^nomodel.yaml:$line:3: effects.carreau_yasuda: needs fluid.model: carreau_yasuda" nomodel.yaml
 
-# ---- the pool: splash ordering at 5 cm spacing
+# ---- the pool: splash ordering at 0.2 m spacing (3943 particles; the scenes: 0.1 m, 32,751)
+# and 4 ms steps (CFL number below 0.1 at the splash's 7 m/s)
 for s in cy_block_into_pool cy_block_into_pool_nonnewtonian; do
-    "$STF" check "$SC/$s.yaml" --set fluid.spacing=0.05 -o "$s.h5" --quiet >"$s.check" 2>&1 ||
+    "$STF" check "$SC/$s.yaml" --set fluid.spacing=0.2 --set dt=0.004 -o "$s.h5" --quiet >"$s.check" 2>&1 ||
         fail "$s: expectations failed: $(cat "$s.check")"
 done
+/usr/bin/python3 - cy_block_into_pool.h5 cy_block_into_pool_nonnewtonian.h5 <<'EOF' || fail "splash ordering"
+import sys, h5py, json
+n, v = (json.loads(h5py.File(p, "r")["metrics"].attrs["json"])["fluid"] for p in sys.argv[1:])
+assert n["splash_height"] > 3 * v["splash_height"], (n["splash_height"], v["splash_height"])
+print("cli_cy: splash_height %.3f m (Newtonian) vs %.3f m (shear thinning)" % (n["splash_height"], v["splash_height"]))
+EOF
 
 # ---- dt = 3e-4 s: implicit runs, explicit blows up (exit 3, named, last good frame kept);
 # at the scene's resolution (the explicit limit falls with the spacing squared), 0.06 s

@@ -3,7 +3,8 @@
  * finger_height is the 95th percentile of the column heights over their median (a single
  * splashed particle does not count), impact_time is the first drop in centre-of-mass speed,
  * solid_duration runs from it until the radius of gyration passes 1.5x its start,
- * com_rebound_height and final_com_height follow the centre of mass. */
+ * com_rebound_height and final_com_height follow the centre of mass, splash_height the
+ * fluid's top (99th percentile of the heights). */
 #define _POSIX_C_SOURCE 200809L
 #include "h5io.h"
 #include "metrics.h"
@@ -85,7 +86,13 @@ static void test_drop(const char *path)
     CHECK_NEAR(m.solid_duration, 0.3, 1e-12, "solid_duration (1.6 > 1.5 at 0.6 s)");
     CHECK_NEAR(m.com_rebound_height, 0.1, 1e-6, "com_rebound_height");
     CHECK_NEAR(m.final_com_height, 0.41, 1e-6, "final_com_height");
+    /* the top (99th percentile of z: 0.9702 of the radius above the centre, ranks of the
+     * 100 points' z = 0.99 - 0.02 k) comes down to 0.4 + 0.05 * 0.9702 at 0.3 s and rises to
+     * 0.5 + 0.06 * 0.9702 at 0.4 s */
+    CHECK_NEAR(m.splash_height, 0.1 + 0.01 * 0.9702, 1e-6, "splash_height");
     double got;
+    CHECK(stf_metrics_get(&m, "fluid.splash_height", &got) == 0 && got == m.splash_height,
+          "expect key fluid.splash_height");
     CHECK(stf_metrics_get(&m, "fluid.solid_duration", &got) == 0 && got == m.solid_duration,
           "expect key fluid.solid_duration");
     CHECK(stf_metrics_get(&m, "fluid.impact_time", &got) == 0, "expect key fluid.impact_time");

@@ -491,8 +491,28 @@ static void test_ball_block(void)
                  "fluid.blocks.0.radius: must be > 0", NULL);
 }
 
+/* container.periodic: the container's inner box along each listed axis is the period. */
+static void test_periodic(void)
+{
+    const char *text = "duration: 1\nfluid:\n  model: carreau_yasuda\n  spacing: 0.01\n  blocks:\n"
+                       "    - min: [0.96, 1.97, 0]\n      max: [1.04, 2.03, 0.1]\neffects: {}\n"
+                       "container:\n  size: [0.08, 0.06, 0.2]\n  position: [1, 2, 0]\n"
+                       "  periodic: [y]\n";
+    char err[512] = "";
+    stf_scene *s = NULL;
+    int rc = stf_scene_load_string("t.yaml", text, NULL, 0, &s, err, sizeof err);
+    CHECK(rc == 0 && s, "periodic scene: %s", err);
+    if (s) {
+        CHECK(s->fluid.periodic[0] == 0 && s->fluid.periodic[2] == 0, "only y is periodic");
+        CHECK_NEAR(s->fluid.periodic[1], 0.06, 0, "period along y = container size.y");
+        CHECK_NEAR(s->fluid.periodic_origin[1], 1.97, 1e-15, "origin = position.y - size.y / 2");
+    }
+    stf_scene_free(s);
+}
+
 int main(void)
 {
+    test_periodic();
     test_ball_block();
     test_full();
     test_defaults();

@@ -8,7 +8,7 @@
 #   CY_TABLE3_SET="fluid.spacing=0.025" adds --set overrides (space-separated) to every run.
 #
 # A time step is good when `stf run` ends normally (exit 0, not the blow-up exit 3), no
-# particle is faster than 3 m/s (free fall from the column's top gives 2.4 m/s), and the
+# particle is faster than 3 m/s (free fall from the column's top gives 2.5 m/s), and the
 # front of the collapsing column (largest particle x at the end) is within one particle
 # spacing of the implicit solver's at dt = 3e-4 s: large implicit steps stay stable but
 # damp the flow (backward Euler with the viscosity frozen over the step). Each solver's list

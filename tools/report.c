@@ -66,5 +66,6 @@ int cli_report(int argc, char **argv)
     line("final_com_height", m.final_com_height, "m");
     line("impact_time", m.impact_time, "s");
     line("solid_duration", m.solid_duration, "s");
+    line("splash_height", m.splash_height, "m");
     return 0;
 }

@@ -553,7 +553,7 @@ static const char *BODY_FIELDS[] = {"first_contact_time", "bounces", "max_reboun
                                     "sink_time", "float_duration", "rest_time", "rest_duration", NULL};
 static const char *FLUID_FIELDS[] = {"particles", "escaped", "max_speed", "com_rebound_height",
                                      "finger_height", "surface_roughness", "final_com_height",
-                                     "impact_time", "solid_duration", NULL};
+                                     "impact_time", "solid_duration", "splash_height", NULL};
 
 static int write_summary(const sweep_args *a, const sweep_plan *p)
 {
