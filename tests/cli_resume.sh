@@ -171,7 +171,7 @@ same soe_ref.h5 soe.h5 "soe history"
 
 # ---- Carreau-Yasuda with warm start -----------------------------------------------------
 cy=$src/scenes/cy_block_into_pool.yaml
-cyset=(--set fluid.spacing=0.05 --set effects.carreau_yasuda.warm_start=0.5 --set frame_rate=50)
+cyset=(--set fluid.spacing=0.2 --set dt=0.004 --set effects.carreau_yasuda.warm_start=0.5 --set frame_rate=50)
 "$stf" run "$cy" -o cy_ref.h5 --duration 0.8 --quiet --checkpoint off "${cyset[@]}" || fail "cy reference"
 stop_run KILL cy.h5 $(($(stat -c %s cy_ref.h5) / 2)) run "$cy" -o cy.h5 --duration 0.8 --checkpoint 0 "${cyset[@]}"
 resume cy.h5
