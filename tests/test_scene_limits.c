@@ -59,7 +59,7 @@ static void test_utf8(void)
     expect("overlong", "a: \xc0\xaf", NULL, 0, 2, "f.yaml:1:4:", "not UTF-8");
     expect("above U+10FFFF", "a: \xf4\x90\x80\x80", NULL, 0, 2, "f.yaml:1:4:", "not UTF-8");
     /* valid multi-byte text passes the check (and fails later, on the schema) */
-    expect("valid UTF-8", "name: caf\xc3\xa9\xe2\x82\xac\xf0\x9f\x98\x80\n", NULL, 0, 2,
+    expect("valid UTF-8", "# caf\xc3\xa9\xe2\x82\xac\xf0\x9f\x98\x80\nname: cafe\n", NULL, 0, 2,
            "duration", NULL);
     stf_override ov = {"name", "x\xff"};
     expect("override", SCENE_HEAD "  blocks: [{min: [0, 0, 0], max: [0.1, 0.1, 0.1]}]\n"
