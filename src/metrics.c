@@ -189,7 +189,8 @@ static long long pack_cell(long long cx, long long cy, long long cz)
  * connected components), keeping each component that holds at least a tenth of the
  * particles (a hole may split the layer) and always the largest one. Drops and spray thrown
  * off the surface, separated from it by a visible gap, are not part of the surface.
- * Returns n (everything kept) when out of memory. */
+ * Returns n (everything kept) when out of memory or a position is not finite or more than
+ * a million links from the origin. */
 static int bulk_first(double *x, int n, double spacing)
 {
     const double link = STF_LINK_SPACINGS * spacing;
@@ -201,36 +202,45 @@ static int bulk_first(double *x, int n, double spacing)
         return n;
     }
     for (int i = 0; i < n; i++) {
+        double c[3];
+        for (int d = 0; d < 3; d++) {
+            c[d] = floor(x[3 * i + d] / link);
+            if (!(fabs(c[d]) < (1 << 20) - 2)) { /* NaN, or beyond the packed range */
+                free(parent), free(size), free(k);
+                return n;
+            }
+        }
         parent[i] = i;
         k[i].i = i;
-        k[i].key = pack_cell((long long)floor(x[3 * i] / link), (long long)floor(x[3 * i + 1] / link),
-                             (long long)floor(x[3 * i + 2] / link));
+        k[i].key = pack_cell((long long)c[0], (long long)c[1], (long long)c[2]);
     }
     qsort(k, (size_t)n, sizeof *k, cmp_cell_key);
-    for (int a = 0; a < n; a++) {
-        int i = k[a].i;
+    const double link2 = link * link;
+    for (int a0 = 0, a1; a0 < n; a0 = a1) { /* the run k[a0, a1) is one cell */
+        for (a1 = a0 + 1; a1 < n && k[a1].key == k[a0].key; a1++) continue;
         long long c[3];
-        for (int d = 0; d < 3; d++) c[d] = (long long)floor(x[3 * i + d] / link);
+        for (int d = 0; d < 3; d++) c[d] = (long long)floor(x[3 * k[a0].i + d] / link);
         for (int dx = -1; dx <= 1; dx++)
             for (int dy = -1; dy <= 1; dy++)
                 for (int dz = -1; dz <= 1; dz++) {
                     long long want = pack_cell(c[0] + dx, c[1] + dy, c[2] + dz);
-                    int lo = 0, hi = n; /* first entry with key >= want */
+                    if (want < k[a0].key) continue; /* that pair of cells is met from the other */
+                    int lo = a0, hi = n;            /* first entry with key >= want */
                     while (lo < hi) {
                         int mid = lo + (hi - lo) / 2;
                         if (k[mid].key < want) lo = mid + 1;
                         else hi = mid;
                     }
-                    for (int b = lo; b < n && k[b].key == want; b++) {
-                        int j = k[b].i;
-                        if (j <= i) continue;
-                        double r2 = 0;
-                        for (int d = 0; d < 3; d++) r2 += (x[3 * i + d] - x[3 * j + d]) * (x[3 * i + d] - x[3 * j + d]);
-                        if (r2 < link * link) {
-                            int ri = uf_root(parent, i), rj = uf_root(parent, j);
-                            if (ri != rj) parent[ri] = rj;
+                    for (int ia = a0; ia < a1; ia++)
+                        for (int b = want == k[a0].key ? ia + 1 : lo; b < n && k[b].key == want; b++) {
+                            int i = k[ia].i, j = k[b].i;
+                            double r2 = 0;
+                            for (int d = 0; d < 3; d++) r2 += (x[3 * i + d] - x[3 * j + d]) * (x[3 * i + d] - x[3 * j + d]);
+                            if (r2 < link2) {
+                                int ri = uf_root(parent, i), rj = uf_root(parent, j);
+                                if (ri != rj) parent[ri] = rj;
+                            }
                         }
-                    }
                 }
     }
     int largest = 0;
