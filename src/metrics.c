@@ -172,6 +172,108 @@ static double top_percentile(const double *x, int n, double *tmp)
     return tmp[lo] + (at - lo) * (tmp[hi] - tmp[lo]);
 }
 
+/* Union-find root with path halving. */
+static int uf_root(int *parent, int i)
+{
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+}
+
+typedef struct cell_key {
+    long long key; /* packed cell coordinates */
+    int i;         /* particle */
+} cell_key;
+
+static int cmp_cell_key(const void *a, const void *b)
+{
+    long long x = ((const cell_key *)a)->key, y = ((const cell_key *)b)->key;
+    return (x > y) - (x < y);
+}
+
+static long long pack_cell(long long cx, long long cy, long long cz)
+{
+    return ((cx + (1 << 20)) << 42) | ((cy + (1 << 20)) << 21) | (cz + (1 << 20));
+}
+
+/* Moves the particles of the fluid body to the front of x and returns how many: the
+ * particles joined by chains of neighbours closer than STF_LINK_SPACINGS spacings (the
+ * connected components), keeping each component that holds at least a tenth of the
+ * particles (a hole may split the layer) and always the largest one. Drops and spray thrown
+ * off the surface, separated from it by a visible gap, are not part of the surface.
+ * Returns n (everything kept) when out of memory or a position is not finite or more than
+ * a million links from the origin. */
+static int bulk_first(double *x, int n, double spacing)
+{
+    const double link = STF_LINK_SPACINGS * spacing;
+    if (n <= 1 || !(link > 0)) return n;
+    int *parent = malloc((size_t)n * sizeof *parent), *size = calloc((size_t)n, sizeof *size);
+    cell_key *k = malloc((size_t)n * sizeof *k);
+    if (!parent || !size || !k) {
+        free(parent), free(size), free(k);
+        return n;
+    }
+    for (int i = 0; i < n; i++) {
+        double c[3];
+        for (int d = 0; d < 3; d++) {
+            c[d] = floor(x[3 * i + d] / link);
+            if (!(fabs(c[d]) < (1 << 20) - 2)) { /* NaN, or beyond the packed range */
+                free(parent), free(size), free(k);
+                return n;
+            }
+        }
+        parent[i] = i;
+        k[i].i = i;
+        k[i].key = pack_cell((long long)c[0], (long long)c[1], (long long)c[2]);
+    }
+    qsort(k, (size_t)n, sizeof *k, cmp_cell_key);
+    const double link2 = link * link;
+    for (int a0 = 0, a1; a0 < n; a0 = a1) { /* the run k[a0, a1) is one cell */
+        for (a1 = a0 + 1; a1 < n && k[a1].key == k[a0].key; a1++) continue;
+        long long c[3];
+        for (int d = 0; d < 3; d++) c[d] = (long long)floor(x[3 * k[a0].i + d] / link);
+        for (int dx = -1; dx <= 1; dx++)
+            for (int dy = -1; dy <= 1; dy++)
+                for (int dz = -1; dz <= 1; dz++) {
+                    long long want = pack_cell(c[0] + dx, c[1] + dy, c[2] + dz);
+                    if (want < k[a0].key) continue; /* that pair of cells is met from the other */
+                    int lo = a0, hi = n;            /* first entry with key >= want */
+                    while (lo < hi) {
+                        int mid = lo + (hi - lo) / 2;
+                        if (k[mid].key < want) lo = mid + 1;
+                        else hi = mid;
+                    }
+                    for (int ia = a0; ia < a1; ia++)
+                        for (int b = want == k[a0].key ? ia + 1 : lo; b < n && k[b].key == want; b++) {
+                            int i = k[ia].i, j = k[b].i;
+                            double r2 = 0;
+                            for (int d = 0; d < 3; d++) r2 += (x[3 * i + d] - x[3 * j + d]) * (x[3 * i + d] - x[3 * j + d]);
+                            if (r2 < link2) {
+                                int ri = uf_root(parent, i), rj = uf_root(parent, j);
+                                if (ri != rj) parent[ri] = rj;
+                            }
+                        }
+                }
+    }
+    int largest = 0;
+    for (int i = 0; i < n; i++) {
+        int r = uf_root(parent, i);
+        if (++size[r] > size[largest]) largest = r;
+    }
+    int m = 0;
+    for (int i = 0; i < n; i++) {
+        int r = uf_root(parent, i);
+        if (r != largest && 10 * size[r] < n) continue;
+        for (int a = 0; a < 3; a++) {
+            double t = x[3 * m + a];
+            x[3 * m + a] = x[3 * i + a];
+            x[3 * i + a] = t;
+        }
+        m++;
+    }
+    free(parent), free(size), free(k);
+    return m;
+}
+
 static int fluid_metrics(const stf_h5r *r, const run_geometry *g, stf_metrics *m)
 {
     int nf = stf_h5r_frames(r);
@@ -218,7 +320,7 @@ static int fluid_metrics(const stf_h5r *r, const run_geometry *g, stf_metrics *m
         }
         if (f >= second_half) {
             double rough = 0;
-            m->finger_height += finger_of(x, inside_first(x, n, g), g->spacing, &rough);
+            m->finger_height += finger_of(x, bulk_first(x, inside_first(x, n, g), g->spacing), g->spacing, &rough);
             counted++;
             if (f == nf - 1) m->surface_roughness = rough;
         }

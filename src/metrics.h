@@ -24,11 +24,16 @@
  *   comes down or settles).
  * - fluid.finger_height: the fluid's surface as columns (cells of 2 spacings in x, y; a
  *   column's height is its highest particle; with a container, only the particles that
- *   have not escaped it). Per frame, the 95th percentile of the column
+ *   have not escaped it). Only the fluid body counts: particles joined to each other by
+ *   chains of neighbours closer than STF_LINK_SPACINGS spacings form a connected piece, and
+ *   the pieces holding at least a tenth of the particles (and always the largest) are the
+ *   body; drops and spray flying free of it (a gap of half a spacing between spheres one
+ *   spacing wide, visible in `stf render`) are splash, not fingers, which stand on the
+ *   surface. Per frame, the 95th percentile of the column
  *   heights minus their median: how far the tallest 5% of the surface (fingers, clusters)
  *   stands above the typical surface; a single splashed particle does not count. Averaged
  *   over the frames of the second half of the run (the driven steady state).
- *   surface_roughness: standard deviation of the column heights in the last frame.
+ *   surface_roughness: standard deviation of the same column heights in the last frame.
  * - fluid.final_com_height: height of the fluid's centre of mass in the last frame.
  * - fluid.impact_time: the first frame at which the speed of the fluid's centre of mass is
  *   lower than at the frame before (a falling blob has hit something); NAN if never.
@@ -45,6 +50,7 @@
 
 #define STF_METRICS_MAX_BODIES 16
 #define STF_REST_SPEED 0.05 /* m/s: a body slower than this rests (rest_time) */
+#define STF_LINK_SPACINGS 1.5 /* spacings: neighbours closer than this are connected (finger_height) */
 
 typedef struct stf_body_metrics {
     char name[64];

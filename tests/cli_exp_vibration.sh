@@ -4,7 +4,8 @@
 # particles). With history the shaken layer stiffens and stays in its container; the same
 # fluid without history sloshes over the walls (at least 1% of its particles). The paper's
 # fingers (fluid.finger_height with history >= 2x without) do NOT appear in this model: the
-# measured finger heights are printed, not held (README, "Experiments").
+# measured finger heights (of the fluid body, spray excluded) are printed, not held; the
+# history layer's is the lower one (README, "Experiments", lists every setting tried).
 # Args: STF_BINARY PROJECT_DIR
 stf=$1; src=$2
 . "$src/tests/exp_lib.sh"

@@ -1,7 +1,7 @@
 /* test_metrics.c - the fluid metrics of src/metrics.h on output files whose answer is known
  * by construction (written with the real HDF5 writer, read back by stf_metrics_compute):
- * finger_height is the 95th percentile of the column heights over their median (a single
- * splashed particle does not count), impact_time is the first drop in centre-of-mass speed,
+ * finger_height is the 95th percentile of the column heights of the fluid body over their
+ * median (drops flying free of the body do not count), impact_time is the first drop in centre-of-mass speed,
  * solid_duration runs from it until the radius of gyration passes 1.5x its start,
  * com_rebound_height and final_com_height follow the centre of mass, splash_height the
  * fluid's top (99th percentile of the heights). */
@@ -17,36 +17,62 @@ enum { NC = 10, NPART = NC * NC }; /* a 10 x 10 grid of columns, one particle ea
 
 static const double S = 0.01; /* spacing, m: the columns are 2 spacings wide */
 
-/* One particle per column; heights: 90 at 0.05 m, 9 at 0.09 m, one splash at 0.5 m. */
-static void surface(int fingers, double *x)
+/* A connected layer: a 20 x 20 lattice at one spacing (10 x 10 columns of 2 x 2 particles) at
+ * z = 0.05 m. With fingers, 9 columns carry a stack of 4 particles, one spacing apart, up
+ * to 0.09 m. Then `drops` particles fly free at 0.5 m over as many other columns (a gap of
+ * 0.41 m: splash). Returns the particle count. */
+enum { LAYER = 400, MAXP = LAYER + 9 * 4 + 20 };
+static int surface(int fingers, int drops, double *x)
 {
-    for (int i = 0; i < NPART; i++) {
-        x[3 * i] = (i % NC + 0.5) * 2 * S;
-        x[3 * i + 1] = (i / NC + 0.5) * 2 * S;
-        x[3 * i + 2] = !fingers || i < 90 ? 0.05 : i < 99 ? 0.09 : 0.5;
+    int n = 0;
+    for (int i = 0; i < LAYER; i++, n++) {
+        x[3 * n] = (i % 20 + 0.5) * S;
+        x[3 * n + 1] = (i / 20 + 0.5) * S;
+        x[3 * n + 2] = 0.05;
     }
+    for (int c = 90; fingers && c < 99; c++) /* column c: lattice cells 2 (c % 10), 2 (c / 10) */
+        for (int k = 1; k <= 4; k++, n++) {
+            x[3 * n] = (2 * (c % NC) + 0.5) * S;
+            x[3 * n + 1] = (2 * (c / NC) + 0.5) * S;
+            x[3 * n + 2] = 0.05 + k * S;
+        }
+    for (int c = 0; c < drops; c++, n++) {
+        x[3 * n] = (2 * (c % NC) + 0.5) * S;
+        x[3 * n + 1] = (2 * (c / NC) + 0.5) * S;
+        x[3 * n + 2] = 0.5;
+    }
+    return n;
 }
 
-static void test_finger_height(const char *path)
+/* Four frames: 0-1 flat, 2-3 with fingers (the second half, which counts) and drops. */
+static void finger_run(const char *path, int drops, stf_metrics *m)
 {
     char err[512];
     stf_h5 *h;
     CHECK(stf_h5_create(path, &h, err, sizeof err) == 0, "create: %s", err);
     if (!h) return;
     stf_h5_attr_double(h, "spacing", S);
-    double x[3 * NPART], v[3 * NPART] = {0};
-    /* frames 0-1 flat, 2-3 with fingers: the second half (frames 2, 3) has fingers */
+    static double x[3 * MAXP], v[3 * MAXP];
     for (int f = 0; f < 4; f++) {
-        surface(f >= 2, x);
-        CHECK(stf_h5_write_frame(h, 0.1 * f, NPART, x, v, NULL, NULL) == 0, "frame %d", f);
+        int n = surface(f >= 2, f >= 2 ? drops : 0, x);
+        CHECK(stf_h5_write_frame(h, 0.1 * f, n, x, v, NULL, NULL) == 0, "frame %d", f);
     }
     CHECK(stf_h5_close(h, err, sizeof err) == 0, "close: %s", err);
+    CHECK(stf_metrics_compute(path, m, err, sizeof err) == 0, "metrics: %s", err);
+}
+
+static void test_finger_height(const char *path)
+{
     stf_metrics m;
-    CHECK(stf_metrics_compute(path, &m, err, sizeof err) == 0, "metrics: %s", err);
-    /* sorted heights: ranks 0-89 at 0.05, 90-98 at 0.09, 99 at 0.5; the 95th percentile is
-     * rank 94.05, between two 0.09 columns; the median 0.05 */
+    /* sorted column heights: 91 at 0.05, 9 at 0.09; the 95th percentile is rank 94.05,
+     * between two 0.09 columns; the median 0.05 */
+    finger_run(path, 1, &m);
     CHECK_NEAR(m.finger_height, 0.04, 1e-6, "finger_height");
     CHECK(m.impact_time != m.impact_time, "no impact in a still layer: %g", m.impact_time);
+    /* 20 drops over 20 columns (more than the top 5%): counted as columns, they would make
+     * the 95th percentile 0.5 m; they are not part of the fluid body, so the fingers remain */
+    finger_run(path, 20, &m);
+    CHECK_NEAR(m.finger_height, 0.04, 1e-6, "finger_height with 20 drops of splash");
 }
 
 /* A ball of 100 points: centre of mass at com, radius scaled by scale, all moving at vz. */
@@ -111,9 +137,9 @@ static void test_body(const char *path)
     stf_h5_attr_double(h, "spacing", S);
     stf_h5_attr_double(h, "bounce_min_rise", 0.01);
     stf_h5_attr_double(h, "body.ball.half_height", 0.1);
-    double x[3 * NPART], v[3 * NPART] = {0};
-    surface(0, x);
-    CHECK(stf_h5_write_frame(h, 0.0, NPART, x, v, NULL, NULL) == 0, "frame");
+    static double x[3 * MAXP], v[3 * MAXP];
+    int n = surface(0, 0, x);
+    CHECK(stf_h5_write_frame(h, 0.0, n, x, v, NULL, NULL) == 0, "frame");
     const double dt = 0.01, q[4] = {1, 0, 0, 0}, w[3] = {0}, f[3] = {0};
     double z = 0.3;
     for (int i = 0; i <= 300; i++) {

@@ -1,0 +1,79 @@
+#!/usr/bin/env bash
+# The settings checked for the paper's vibration fingers (issue 4; README, "Vibration"):
+# each pair is the shipped scene with / without history at 2 cm spacing (3 s), with the
+# changes given; prints fluid.finger_height (of the fluid body) and fluid.escaped of both,
+# and the surface analysis of scenes/sweeps/surface_relief.py when h5py is present.
+# About 10 s of CPU a pair at 2 cm.
+# usage: bash scenes/sweeps/vibration_checks.sh [STF] [DIR]
+set -eu
+here=$(cd "$(dirname "$0")" && pwd)
+STF=${1:-$here/../../build/tools/stf}
+DIR=${2:-vibration_checks}
+mkdir -p "$DIR"
+export OMP_NUM_THREADS=${OMP_NUM_THREADS:-1}
+metric() { "$STF" report "$1" --json | /usr/bin/python3 -c \
+    'import json, sys; f = json.load(sys.stdin)["fluid"]; print(f["finger_height"], f["escaped"])'; }
+# pair TAG SCENE_WITH SCENE_WITHOUT [--set ...]: the history settings are dropped for "without"
+pair() {
+    local tag=$1 sh=$2 sn=$3; shift 3
+    local none=() a
+    for a in "$@"; do case $a in effects.history.*|effects.boundary_stick.*) unset 'none[-1]';; *) none+=("$a");; esac; done
+    "$STF" run "$sh" -o "$DIR/${tag}_h.h5" --quiet --set fluid.spacing=0.02 "$@"
+    "$STF" run "$sn" -o "$DIR/${tag}_n.h5" --quiet --set fluid.spacing=0.02 "${none[@]}"
+    echo "$tag: finger_height (m), escaped: with history $(metric "$DIR/${tag}_h.h5"); without $(metric "$DIR/${tag}_n.h5")"
+    /usr/bin/python3 -c 'import h5py' 2>/dev/null && \
+        /usr/bin/python3 "$here/surface_relief.py" "$DIR/${tag}_h.h5" "$DIR/${tag}_n.h5"
+    return 0
+}
+H=$here/../vibration.yaml; N=$here/../vibration_no_history.yaml
+V=container.vibration
+pair shipped "$H" "$N"
+for o in 3000 10000 30000; do pair onset$o "$H" "$N" --set effects.history.k_onset=$o; done
+pair onset30000_khx5 "$H" "$N" --set effects.history.k_onset=30000 --set effects.history.k_hist=1000000
+pair d500 "$H" "$N" --set effects.history.d=500
+pair d500_onset10000 "$H" "$N" --set effects.history.d=500 --set effects.history.k_onset=10000
+pair f15 "$H" "$N" --set $V.frequency=15 --set $V.amplitude=0.003 --set effects.history.k_onset=3000
+pair f10 "$H" "$N" --set $V.frequency=10 --set $V.amplitude=0.005 --set effects.history.k_onset=3000
+pair f25 "$H" "$N" --set $V.frequency=25 --set $V.amplitude=0.004
+thin=(--set container.size=[0.2,0.2,0.2] --set fluid.blocks.0.min=[-0.1,-0.1,0]
+      --set fluid.blocks.0.max=[0.1,0.1,0.03] --set $V.frequency=40 --set $V.amplitude=0.0015)
+pair thin "$H" "$N" "${thin[@]}" --set fluid.spacing=0.01
+pair thin_onset3000 "$H" "$N" "${thin[@]}" --set fluid.spacing=0.01 --set effects.history.k_onset=3000
+
+# The paper's "equally distributed vibration sources": nine 6 x 6 cm kinematic pistons in the
+# floor under a 6 cm layer, 10 Hz, 1.5 cm, each with its own random frequency changes.
+pistons() { # pistons HISTORY(0|1)
+    cat <<YAML
+name: vibration_sources
+duration: 3.0
+dt: 0.001
+frame_rate: 30
+fluid:
+  model: clavet_stf
+  spacing: 0.01
+  density: 1270
+  blocks:
+    - {min: [-0.15, -0.15, 0.0], max: [0.15, 0.15, 0.06]}
+effects:
+  gravity: {g: [0, 0, -9.81]}
+  viscosity: {sigma: 10.0}
+  pressure: {k: 1000, k_near: 200}
+  springs: {k_min: 100, yield_ratio: 0.0, plasticity: 2.0}
+YAML
+    [ "$1" = 1 ] && cat <<YAML
+  history: {q: 0.5, d: 50, k_hist: 200000, reference_spacing: 0.02, k_onset: 3000}
+  boundary_stick: {stick: 200}
+YAML
+    printf 'container: {size: [0.3, 0.3, 0.3], wall: 0.02, friction: 0.2}\nbodies:\n'
+    local n=0 x y
+    for x in -0.1 0 0.1; do for y in -0.1 0 0.1; do n=$((n + 1)); cat <<YAML
+  - {name: p$n, shape: box, size: [0.06, 0.06, 0.04], position: [$x, $y, -0.005], motion: kinematic,
+     stick: $([ "$1" = 1 ] && echo true || echo false),
+     vibration: {axis: [0, 0, 1], amplitude: 0.015, frequency: 10, jitter: 0.3, jitter_period: 0.25, seed: $n}}
+YAML
+    done; done
+}
+pistons 1 >"$DIR/sources.yaml"; pistons 0 >"$DIR/sources_no_history.yaml"
+pair sources "$DIR/sources.yaml" "$DIR/sources_no_history.yaml"
+pair sources_onset0 "$DIR/sources.yaml" "$DIR/sources_no_history.yaml" --set effects.history.k_onset=0
+pair sources_d500 "$DIR/sources.yaml" "$DIR/sources_no_history.yaml" --set effects.history.d=500
