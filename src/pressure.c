@@ -80,7 +80,7 @@ __attribute__((target_clones("avx2", "default")))
 static void density_one(stf_fluid *f, int i)
 {
     const double *x = f->x;
-    double h = f->h, rho = 0, rho_near = 0;
+    double h = f->h, inv_h = 1.0 / h, rho = 0, rho_near = 0;
     const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
     double rx[PCHUNK], ry[PCHUNK], rz[PCHUNK], w2[PCHUNK], w3[PCHUNK];
     for (int k0 = 0; k0 < f->grid.count[i]; k0 += PCHUNK) {
@@ -92,7 +92,7 @@ static void density_one(stf_fluid *f, int i)
         }
         for (int e = 0; e < m; e++) {
             double r2 = rx[e] * rx[e] + ry[e] * ry[e] + rz[e] * rz[e];
-            double a = 1.0 - sqrt(r2) / h;
+            double a = 1.0 - sqrt(r2) * inv_h;
             int in = r2 < h * h; /* out: adds +0, which leaves the sums' bits as they are */
             w2[e] = in ? a * a : 0.0;
             w3[e] = in ? a * a * a : 0.0;
@@ -148,7 +148,8 @@ __attribute__((target_clones("avx2", "default")))
 static void relax_one(stf_fluid *f, int i, double dt)
 {
     const double *x = f->x, *P = f->rho, *Pn = f->rho_near;
-    double h = f->h, dx = 0, dy = 0, dz = 0, tiny = 1e-12 * h;
+    double h = f->h, inv_h = 1.0 / h, dx = 0, dy = 0, dz = 0, tiny = 1e-12 * h;
+    double half_dt2 = 0.5 * dt * dt;
     const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
     double rx[PCHUNK], ry[PCHUNK], rz[PCHUNK], pj[PCHUNK], pnj[PCHUNK];
     double tx[PCHUNK], ty[PCHUNK], tz[PCHUNK];
@@ -163,8 +164,8 @@ static void relax_one(stf_fluid *f, int i, double dt)
         }
         for (int e = 0; e < m; e++) {
             double r = sqrt(rx[e] * rx[e] + ry[e] * ry[e] + rz[e] * rz[e]);
-            double a = 1.0 - r / h, len = r > tiny ? r : 1.0;
-            double D = 0.5 * dt * dt * ((P[i] + pj[e]) * a + (Pn[i] + pnj[e]) * a * a) / len;
+            double a = 1.0 - r * inv_h, len = r > tiny ? r : 1.0;
+            double D = half_dt2 * ((P[i] + pj[e]) * a + (Pn[i] + pnj[e]) * a * a) / len;
             int in = (r < h) & (r > tiny); /* out: adds +-0 (the sums are never -0) */
             same[e] = r <= tiny;
             tx[e] = in ? D * rx[e] : 0.0;
@@ -176,7 +177,7 @@ static void relax_one(stf_fluid *f, int i, double dt)
                 int j = nb[k0 + e];
                 double ex, ey, ez;
                 coincident_direction(f->id[i], f->id[j], &ex, &ey, &ez);
-                double D = 0.5 * dt * dt * ((P[i] + P[j]) + (Pn[i] + Pn[j]));
+                double D = half_dt2 * ((P[i] + P[j]) + (Pn[i] + Pn[j]));
                 tx[e] = D * ex, ty[e] = D * ey, tz[e] = D * ez;
             }
             dx -= tx[e];

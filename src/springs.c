@@ -164,7 +164,8 @@ __attribute__((target_clones("avx2", "default")))
 static void flush_chunk(const stf_fluid *f, spring_chunk *ch, double dt, double khist_scale,
                         int32_t *np, double *nL, int stride, spring_acc *acc)
 {
-    double h = f->h, tiny = 1e-12 * h, k_min = f->def.k_min, onset = f->def.k_onset;
+    double h = f->h, inv_h = 1.0 / h, tiny = 1e-12 * h, k_min = f->def.k_min, onset = f->def.k_onset;
+    double dt2 = dt * dt;
     double gamma = f->def.yield_ratio, alpha = f->def.plasticity, dtn = f->dt_now;
     int m = ch->m;
     /* branch-free, so it vectorizes (without history e = 0 and kh comes out 0) */
@@ -180,7 +181,7 @@ static void flush_chunk(const stf_fluid *f, spring_chunk *ch, double dt, double 
         double kh = khist_scale * sqrt(ex * ex + ey * ey + ez * ez); /* Eq. 6 */
         kh = kh > onset ? kh - onset : 0.0; /* thickening starts at the onset */
         double kij = k_min + kh;
-        double c = dt * dt * kij * (1.0 - L / h);
+        double c = dt2 * kij * (1.0 - L * inv_h);
         double rs = r > tiny ? r : 1.0;
         double mag = 0.5 * c * (L - r) / rs;
         double ok = (double)(r > tiny); /* coincident: no direction to push along, and no gain */

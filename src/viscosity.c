@@ -17,7 +17,8 @@ __attribute__((target_clones("avx2", "default")))
 static void gather_one(stf_fluid *f, int i, double dt)
 {
     const double *x = f->x, *v = f->v;
-    double h = f->h, sigma = f->def.sigma, beta = f->def.beta, tiny = 1e-12 * h;
+    double h = f->h, inv_h = 1.0 / h, sigma = f->def.sigma, beta = f->def.beta, tiny = 1e-12 * h;
+    double half_dt = 0.5 * dt;
     double ax = 0, ay = 0, az = 0;
     const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
     double rx[VISC_CHUNK], ry[VISC_CHUNK], rz[VISC_CHUNK], ux[VISC_CHUNK], uy[VISC_CHUNK],
@@ -37,10 +38,10 @@ static void gather_one(stf_fluid *f, int i, double dt)
                computed (with r kept off 0) and a skipped one adds I = +-0, which leaves the
                sums' bits as they were (they are never -0). */
             double rs = r > tiny ? r : tiny;
-            double q = r / h;
+            double inv = 1.0 / rs, q = r * inv_h; /* one division */
             /* u: how fast i and j approach each other along their line */
-            double u = (ux[e] * rx[e] + uy[e] * ry[e] + uz[e] * rz[e]) / rs;
-            double I = 0.5 * dt * (1.0 - q) * (sigma * u + beta * u * u) / rs;
+            double u = (ux[e] * rx[e] + uy[e] * ry[e] + uz[e] * rz[e]) * inv;
+            double I = half_dt * (1.0 - q) * (sigma * u + beta * u * u) * inv;
             I *= (double)((u > 0) & (r < h) & (r > tiny));
             ux[e] = I * rx[e], uy[e] = I * ry[e], uz[e] = I * rz[e];
         }
