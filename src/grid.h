@@ -58,5 +58,13 @@ void grid_free(stf_grid *g);
 /* The particles were renumbered: the next grid_build rebuilds its candidates. */
 static inline void grid_invalidate(stf_grid *g) { g->valid = 0; }
 size_t grid_bytes(const stf_grid *g);
+/* Asks for particle i's neighbour row ahead of a pass that visits the particles in order
+ * (rows are a fixed stride apart, wider than the neighbours they hold). */
+static inline void grid_prefetch(const stf_grid *g, int i, int n)
+{
+    if (i >= n) return;
+    const char *p = (const char *)(g->nbr + (size_t)i * (size_t)g->stride);
+    for (int b = 0; b < g->count[i] * 4; b += 64) __builtin_prefetch(p + b);
+}
 
 #endif

@@ -248,6 +248,13 @@ static int adjust_one(stf_fluid *f, int i, int64_t stamp, int64_t *mark, double 
     double *nL = s->rest2 + (size_t)i * s->stride;
     int hist = khist_scale > 0;
     spring_acc acc = {{0, 0, 0}, 0, 0, 0};
+    if (i + 2 < f->n) { /* the rows of a particle two ahead: a few lines each, 384 B apart */
+        const char *pp = (const char *)(op + 2 * (size_t)s->stride);
+        const char *pl = (const char *)(oL + 2 * (size_t)s->stride);
+        for (int b = 0; b < s->count[i + 2] * 4; b += 64) __builtin_prefetch(pp + b);
+        for (int b = 0; b < s->count[i + 2] * 8; b += 64) __builtin_prefetch(pl + b);
+        grid_prefetch(&f->grid, i + 2, f->n);
+    }
     ch->m = 0;
     for (int k = 0; k < s->count[i]; k++) {
         int j = op[k];

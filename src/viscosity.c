@@ -20,6 +20,7 @@ static void gather_one(stf_fluid *f, int i, double dt)
     double h = f->h, inv_h = 1.0 / h, sigma = f->def.sigma, beta = f->def.beta, tiny = 1e-12 * h;
     double half_dt = 0.5 * dt;
     double ax = 0, ay = 0, az = 0;
+    grid_prefetch(&f->grid, i + 2, f->n);
     const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
     double rx[VISC_CHUNK], ry[VISC_CHUNK], rz[VISC_CHUNK], ux[VISC_CHUNK], uy[VISC_CHUNK],
         uz[VISC_CHUNK];
