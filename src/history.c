@@ -165,10 +165,10 @@ int history_permute(stf_history *h, const int *perm, int n)
     size_t row = (size_t)h->n_alloc * 3;
     float *ring = malloc((size_t)h->cap * row * sizeof *ring);
     if (!ring) return -1;
+#pragma omp parallel for schedule(static)
     for (int s = 0; s < h->cap; s++) {
         const float *src = h->ring + (size_t)s * row;
         float *dst = ring + (size_t)s * row;
-#pragma omp parallel for schedule(static)
         for (int i = 0; i < n; i++)
             for (int c = 0; c < 3; c++) dst[3 * i + c] = src[3 * (size_t)perm[i] + c];
         memset(dst + (size_t)n * 3, 0, (row - (size_t)n * 3) * sizeof *ring);
