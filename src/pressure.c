@@ -76,7 +76,7 @@ static void wall_sums(const stf_fluid *f, double d, double out[W_COUNT])
  * square roots and divisions are most of the cost), then summed in list order. */
 #define PCHUNK 64
 
-__attribute__((target_clones("avx2", "default")))
+STF_VECTOR_CLONES
 static void density_one(stf_fluid *f, int i)
 {
     const double *x = f->x;
@@ -145,7 +145,7 @@ static void coincident_direction(int32_t id_i, int32_t id_j, double *ex, double 
     *ez = sign * v[2] / len;
 }
 
-__attribute__((target_clones("avx2", "default")))
+STF_VECTOR_CLONES
 static void relax_one(stf_fluid *f, int i, double dt)
 {
     const double *x = f->x, *P = f->rho, *Pn = f->rho_near;

@@ -160,7 +160,7 @@ typedef struct spring_acc {
 
 /* Alg. 4 and push_one (scale 1) over a chunk, then its sums in order into acc and the kept
  * springs into the new list (np, nL: past the stride nothing is written). */
-__attribute__((target_clones("avx2", "default")))
+STF_VECTOR_CLONES
 static void flush_chunk(const stf_fluid *f, spring_chunk *ch, double dt, double khist_scale,
                         int32_t *np, double *nL, int stride, spring_acc *acc)
 {

@@ -13,7 +13,7 @@
  * and divisions are most of the cost), then summed in list order. */
 #define VISC_CHUNK 64
 
-__attribute__((target_clones("avx2", "default")))
+STF_VECTOR_CLONES
 static void gather_one(stf_fluid *f, int i, double dt)
 {
     const double *x = f->x, *v = f->v;
