@@ -48,19 +48,27 @@ static int save_springs(const stf_springs *sp, int n, stf_state *s)
     return 0;
 }
 
-static void save_history(const stf_history *h, int n, stf_state *s)
+static int save_history(const stf_history *h, int n, stf_state *s)
 {
     stf_state_put_i64(s, "history.pushed", h->pushed);
     if (h->terms) {
         stf_state_put_i64(s, "history.terms", h->terms);
         stf_state_put(s, "history.soe_T", F64, (size_t)n * (size_t)h->terms * 3, h->soe_T);
         stf_state_put(s, "history.soe_v0", F64, (size_t)n * 3, h->soe_v0);
-        return;
+        return 0;
     }
     stf_state_put_i64(s, "history.window", h->window);
     stf_state_put_i64(s, "history.cap", h->cap);
     stf_state_put_i64(s, "history.head", h->head);
-    stf_state_put(s, "history.ring", F32, (size_t)n * (size_t)h->cap * 3, h->ring);
+    /* The ring is slot-major with rows of n_alloc particles; the checkpoint holds n of each. */
+    size_t row = (size_t)n * 3;
+    float *ring = malloc((size_t)h->cap * row * sizeof *ring + 1);
+    if (!ring) return -1;
+    for (int k = 0; k < h->cap; k++)
+        memcpy(ring + (size_t)k * row, h->ring + (size_t)k * (size_t)h->n_alloc * 3,
+               row * sizeof *ring);
+    stf_state_put_owned(s, "history.ring", F32, (size_t)h->cap * row, ring);
+    return 0;
 }
 
 int stf_fluid_save_state(const stf_fluid *f, stf_state *s)
@@ -91,7 +99,7 @@ int stf_fluid_save_state(const stf_fluid *f, stf_state *s)
     }
     if (f->springs.n_alloc && save_springs(&f->springs, n, s) != 0) return -1;
     stf_state_put_i64(s, "history.started", f->hist.w != NULL);
-    if (f->hist.w) save_history(&f->hist, n, s);
+    if (f->hist.w && save_history(&f->hist, n, s) != 0) return -1;
     if (f->cy && cy_save_state(f, s) != 0) return -1;
     return s->failed ? -1 : 0;
 }
@@ -172,7 +180,15 @@ static int load_history(stf_fluid *f, const stf_state *s, char *err, size_t errl
         goto oom;
     h->pushed = (long)pushed;
     h->head = (int)head;
-    return stf_state_get(s, "history.ring", F32, (size_t)n * (size_t)cap * 3, h->ring, err, errlen);
+    size_t row = (size_t)n * 3;
+    float *ring = malloc((size_t)cap * row * sizeof *ring + 1);
+    if (!ring) goto oom;
+    int rc = stf_state_get(s, "history.ring", F32, (size_t)cap * row, ring, err, errlen);
+    for (int k = 0; rc == 0 && k < cap; k++)
+        memcpy(h->ring + (size_t)k * (size_t)h->n_alloc * 3, ring + (size_t)k * row,
+               row * sizeof *ring);
+    free(ring);
+    return rc;
 oom:
     snprintf(err, errlen, "checkpoint: out of memory for the history");
     return -1;

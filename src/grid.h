@@ -63,4 +63,13 @@ size_t grid_bytes(const stf_grid *g);
  * order as then. 0 / -1 (out of memory). */
 int grid_restore(stf_grid *g, const double *xref, int n, double h, double skin_used);
 
+/* Asks for particle i's neighbour row ahead of a pass that visits the particles in order
+ * (rows are a fixed stride apart, wider than the neighbours they hold). */
+static inline void grid_prefetch(const stf_grid *g, int i, int n)
+{
+    if (i >= n) return;
+    const char *p = (const char *)(g->nbr + (size_t)i * (size_t)g->stride);
+    for (int b = 0; b < g->count[i] * 4; b += 64) __builtin_prefetch(p + b);
+}
+
 #endif

@@ -61,41 +61,48 @@ void *history_grow_zeroed(void *p, size_t old_n, size_t new_n, size_t size)
     return q;
 }
 
+/* A new slot-major ring of `slots` slots of 3 n_new floats, taking slot s of the old ring
+ * from old slot from(s) for s < keep (3 n_old floats each), the rest zero. NULL when out of
+ * memory. */
+static float *reshape_ring(const stf_history *h, int slots, int n_new, int keep, int first)
+{
+    size_t row = (size_t)n_new * 3, orow = (size_t)h->n_alloc * 3;
+    float *ring = calloc((size_t)slots * row, sizeof *ring);
+    if (!ring) return NULL;
+    for (int s = 0; s < keep; s++)
+        memcpy(ring + (size_t)s * row, h->ring + (size_t)((first + s) % h->cap) * orow,
+               orow * sizeof *ring);
+    return ring;
+}
+
 int history_resize(stf_history *h, int n)
 {
     if (h->terms) return history_soe_resize(h, n);
     if (n <= h->n_alloc) return 0;
     int cap = n + n / 4 + 16;
-    size_t row = (size_t)h->cap * 3;
-    float *ring = history_grow_zeroed(h->ring, (size_t)h->n_alloc * row, (size_t)cap * row, sizeof *ring);
+    float *ring = reshape_ring(h, h->cap, cap, h->ring ? h->cap : 0, 0); /* slots stay put */
     if (!ring) return -1;
-    h->ring = ring;
     double *D = history_grow_zeroed(h->D, (size_t)h->n_alloc * 3, (size_t)cap * 3, sizeof *D);
-    if (!D) return -1;
+    if (!D) {
+        free(ring);
+        return -1;
+    }
+    free(h->ring);
+    h->ring = ring;
     h->D = D;
     h->n_alloc = cap;
     return 0;
 }
 
-/* Full history: doubles the slots, unrolling each ring so the oldest sample is slot 0. */
+/* Full history: doubles the slots, unrolling the ring so the oldest sample is slot 0. */
 static int grow_slots(stf_history *h)
 {
     int old = h->cap, cap = 2 * old;
-    float *ring = malloc((size_t)h->n_alloc * (size_t)cap * 3 * sizeof *ring);
     double *w = realloc(h->w, (size_t)cap * sizeof *w);
-    if (!ring || !w) {
-        free(ring);
-        if (w) h->w = w;
-        return -1;
-    }
+    if (!w) return -1;
     h->w = w;
-    for (int i = 0; i < h->n_alloc; i++) {
-        const float *src = h->ring + (size_t)i * (size_t)old * 3;
-        float *dst = ring + (size_t)i * (size_t)cap * 3;
-        for (int s = 0; s < old; s++) /* oldest first */
-            memcpy(dst + 3 * s, src + 3 * ((h->head + 1 + s) % old), 3 * sizeof *src);
-        memset(dst + 3 * old, 0, (size_t)(cap - old) * 3 * sizeof *dst);
-    }
+    float *ring = reshape_ring(h, cap, h->n_alloc, old, h->head + 1); /* oldest first */
+    if (!ring) return -1;
     free(h->ring);
     h->ring = ring;
     h->head = old - 1;
@@ -113,15 +120,9 @@ int history_push(stf_history *h, const double *v, int n)
     if (h->window == 0 && h->pushed >= h->cap && grow_slots(h) != 0) return -1;
     h->head = (h->head + 1) % h->cap;
     h->pushed++;
-    size_t row = (size_t)h->cap * 3;
-    int head = h->head;
+    float *slot = h->ring + (size_t)h->head * (size_t)h->n_alloc * 3;
 #pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) {
-        float *s = h->ring + (size_t)i * row + 3 * (size_t)head;
-        s[0] = (float)v[3 * i];
-        s[1] = (float)v[3 * i + 1];
-        s[2] = (float)v[3 * i + 2];
-    }
+    for (int i = 0; i < 3 * n; i++) slot[i] = (float)v[i];
     return 0;
 }
 
@@ -134,41 +135,44 @@ void history_derivative(stf_history *h, int n)
     int m = last < h->cap ? (int)last : h->cap - 1;
     double w_end = last < h->cap ? stf_history_weight(h->q, 0, last) : h->w[m];
     if (last == 0) w_end = 1.0;
-    size_t row = (size_t)h->cap * 3;
-    int head = h->head, cap = h->cap;
+    size_t row = (size_t)h->n_alloc * 3;
+    int head = h->head, cap = h->cap, len = 3 * n;
     const double *w = h->w;
+    /* Blocks of particles: each block's sums stay in L1 while every slot streams past. The
+       sum of each component runs over the lags in the same order whatever the blocks (or
+       threads), from lag 0 to the end point. */
+    enum { BLOCK = 1536 };
+    int nblocks = (len + BLOCK - 1) / BLOCK;
 #pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) {
-        const float *r = h->ring + (size_t)i * row;
-        double sx = 0, sy = 0, sz = 0;
-        for (int k = 0; k < m; k++) {
+    for (int b = 0; b < nblocks; b++) {
+        int lo = b * BLOCK, cnt = len - lo < BLOCK ? len - lo : BLOCK;
+        double acc[BLOCK];
+        for (int e = 0; e < cnt; e++) acc[e] = 0.0;
+        for (int k = 0; k <= m; k++) {
             int s = head - k;
             if (s < 0) s += cap;
-            sx += w[k] * r[3 * s];
-            sy += w[k] * r[3 * s + 1];
-            sz += w[k] * r[3 * s + 2];
+            const float *r = h->ring + (size_t)s * row + lo;
+            double wk = k < m ? w[k] : w_end;
+            for (int e = 0; e < cnt; e++) acc[e] += wk * r[e];
         }
-        int s = head - m;
-        if (s < 0) s += cap;
-        sx += w_end * r[3 * s];
-        sy += w_end * r[3 * s + 1];
-        sz += w_end * r[3 * s + 2];
-        h->D[3 * i] = sx;
-        h->D[3 * i + 1] = sy;
-        h->D[3 * i + 2] = sz;
+        memcpy(h->D + lo, acc, (size_t)cnt * sizeof *acc);
     }
 }
 
 int history_permute(stf_history *h, const int *perm, int n)
 {
     if (h->terms) return history_soe_permute(h, perm, n);
-    size_t row = (size_t)h->cap * 3;
-    float *ring = malloc((size_t)h->n_alloc * row * sizeof *ring);
+    size_t row = (size_t)h->n_alloc * 3;
+    float *ring = malloc((size_t)h->cap * row * sizeof *ring);
     if (!ring) return -1;
 #pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++)
-        memcpy(ring + (size_t)i * row, h->ring + (size_t)perm[i] * row, row * sizeof *ring);
-    memset(ring + (size_t)n * row, 0, (size_t)(h->n_alloc - n) * row * sizeof *ring);
+    for (int s = 0; s < h->cap; s++) {
+        const float *src = h->ring + (size_t)s * row;
+        float *dst = ring + (size_t)s * row;
+        for (int i = 0; i < n; i++)
+            for (int c = 0; c < 3; c++) dst[3 * i + c] = src[3 * (size_t)perm[i] + c];
+        memset(dst + (size_t)n * 3, 0, (row - (size_t)n * 3) * sizeof *ring);
+    }
     free(h->ring);
     h->ring = ring;
     return 0;

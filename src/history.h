@@ -2,7 +2,9 @@
  *
  * D^q x_n = dt^(1-q)/Gamma(3-q) * sum_p a_{p,n} v_p. Each particle keeps its past velocities in
  * a ring (float32, 12 bytes a vector as in the paper's Table 1); the weighted sum is taken once
- * per particle per step, so a spring needs only |D_i - D_j| (DESIGN.md, "History springs"). */
+ * per particle per step, so a spring needs only |D_i - D_j| (DESIGN.md, "History springs").
+ * The ring is stored by time slot (slot s holds all particles' velocities of one step), so
+ * the weighted sum streams through memory in a loop the compiler vectorizes. */
 #ifndef STF_HISTORY_H
 #define STF_HISTORY_H
 
@@ -13,7 +15,7 @@ typedef struct stf_history {
     int window;   /* d: lags kept beyond the newest sample; 0 for full history */
     int cap;      /* ring slots per particle */
     int n_alloc;  /* particles the ring holds */
-    float *ring;  /* n_alloc * cap * 3 velocities */
+    float *ring;  /* cap slots of 3 n_alloc velocities (slot-major) */
     long pushed;  /* samples pushed since the start */
     int head;     /* slot of the newest sample */
     double *w;    /* cap interior weights by lag: w[0] = 1, w[k] = a_{n-k,n} for 0 < k < n */

@@ -135,57 +135,145 @@ static inline void push_one(const stf_fluid *f, int i, int j, double rx, double 
     d[2] -= mag * rz;
 }
 
+/* The springs of one particle are processed in chunks of SPRING_CHUNK: the gathers (partner
+ * positions and history sums) into contiguous arrays, then the arithmetic over the chunk in a
+ * loop the compiler vectorizes (the square roots and divisions are most of the cost), then
+ * the sums in list order, so the results are those of one spring at a time (push_one). */
+#define SPRING_CHUNK 64
+
+typedef struct spring_chunk {
+    int m;
+    int32_t j[SPRING_CHUNK];
+    double rx[SPRING_CHUNK], ry[SPRING_CHUNK], rz[SPRING_CHUNK];
+    double ex[SPRING_CHUNK], ey[SPRING_CHUNK], ez[SPRING_CHUNK]; /* D_i - D_j */
+    double L0[SPRING_CHUNK];  /* old rest length; < 0: a new spring (starts at its length) */
+    /* results */
+    double L[SPRING_CHUNK], kh[SPRING_CHUNK], c[SPRING_CHUNK];
+    double tx[SPRING_CHUNK], ty[SPRING_CHUNK], tz[SPRING_CHUNK];
+    double brk[SPRING_CHUNK]; /* 1: the spring breaks (or is not made) */
+} spring_chunk;
+
+typedef struct spring_acc {
+    double d[3], ksum, csum;
+    int cnt;
+} spring_acc;
+
+/* Alg. 4 and push_one (scale 1) over a chunk, then its sums in order into acc and the kept
+ * springs into the new list (np, nL: past the stride nothing is written). */
+STF_VECTOR_CLONES
+static void flush_chunk(const stf_fluid *f, spring_chunk *ch, double dt, double khist_scale,
+                        int32_t *np, double *nL, int stride, spring_acc *acc)
+{
+    double h = f->h, inv_h = 1.0 / h, tiny = 1e-12 * h, k_min = f->def.k_min, onset = f->def.k_onset;
+    double dt2 = dt * dt;
+    double gamma = f->def.yield_ratio, alpha = f->def.plasticity, dtn = f->dt_now;
+    int m = ch->m;
+    /* branch-free, so it vectorizes (without history e = 0 and kh comes out 0) */
+    for (int e = 0; e < m; e++) {
+        double rx = ch->rx[e], ry = ch->ry[e], rz = ch->rz[e];
+        double r = sqrt(rx * rx + ry * ry + rz * rz);
+        double L0 = ch->L0[e];
+        double fresh = (double)(L0 < 0);
+        double Lp = plastic_rest(L0, r, gamma, alpha, dtn);
+        double L = fresh > 0 ? r : Lp;
+        double brk = fresh > 0 ? (double)(r >= h) : (double)(L > h); /* Alg. 4: springs longer than h break */
+        double ex = ch->ex[e], ey = ch->ey[e], ez = ch->ez[e];
+        double kh = khist_scale * sqrt(ex * ex + ey * ey + ez * ez); /* Eq. 6 */
+        kh = kh > onset ? kh - onset : 0.0; /* thickening starts at the onset */
+        double kij = k_min + kh;
+        double c = dt2 * kij * (1.0 - L * inv_h);
+        double rs = r > tiny ? r : 1.0;
+        double mag = 0.5 * c * (L - r) / rs;
+        double ok = (double)(r > tiny); /* coincident: no direction to push along, and no gain */
+        ch->L[e] = L;
+        ch->brk[e] = brk;
+        ch->kh[e] = ok > 0 ? kh : 0.0;
+        ch->c[e] = ok > 0 ? c : 0.0;
+        ch->tx[e] = ok > 0 ? mag * rx : 0.0;
+        ch->ty[e] = ok > 0 ? mag * ry : 0.0;
+        ch->tz[e] = ok > 0 ? mag * rz : 0.0;
+    }
+    /* in order, in locals (acc, np and nL might alias the chunk as far as the compiler knows) */
+    double d0 = acc->d[0], d1 = acc->d[1], d2 = acc->d[2], ksum = acc->ksum, csum = acc->csum;
+    int cnt = acc->cnt;
+    for (int e = 0; e < m; e++) {
+        if (ch->brk[e] != 0) continue;
+        if (cnt < stride) {
+            np[cnt] = ch->j[e];
+            nL[cnt] = ch->L[e];
+        }
+        cnt++;
+        ksum += ch->kh[e];
+        csum += ch->c[e];
+        d0 -= ch->tx[e];
+        d1 -= ch->ty[e];
+        d2 -= ch->tz[e];
+    }
+    acc->d[0] = d0, acc->d[1] = d1, acc->d[2] = d2, acc->ksum = ksum, acc->csum = csum;
+    acc->cnt = cnt;
+    ch->m = 0;
+}
+
+static inline void chunk_add(const stf_fluid *f, spring_chunk *ch, int i, int j, double L0,
+                             int with_history)
+{
+    const double *x = f->x;
+    int e = ch->m++;
+    ch->j[e] = j;
+    ch->rx[e] = x[3 * j] - x[3 * i];
+    ch->ry[e] = x[3 * j + 1] - x[3 * i + 1];
+    ch->rz[e] = x[3 * j + 2] - x[3 * i + 2];
+    ch->L0[e] = L0;
+    if (with_history) {
+        const double *D = f->hist.D;
+        ch->ex[e] = D[3 * i] - D[3 * j];
+        ch->ey[e] = D[3 * i + 1] - D[3 * j + 1];
+        ch->ez[e] = D[3 * i + 2] - D[3 * j + 2];
+    } else ch->ex[e] = ch->ey[e] = ch->ez[e] = 0.0;
+}
+
 /* Rebuilds particle i's spring list into the second buffer (Alg. 4) and, in the same pass
  * over the same distances, gathers the displacements of its new springs into f->dx (Alg. 3:
- * the order of the sums is that of the new list). Returns its new count (may exceed the
- * stride, then nothing past the stride was written and the caller redoes the pass). */
+ * the order of the sums is that of the new list). A new spring starts at its current length,
+ * so it carries no force on creation (mag = 0; its history stiffness counts in the mean).
+ * Returns its new count (may exceed the stride, then nothing past the stride was written and
+ * the caller redoes the pass). */
 static int adjust_one(stf_fluid *f, int i, int64_t stamp, int64_t *mark, double dt,
-                      double khist_scale)
+                      double khist_scale, spring_chunk *ch)
 {
     stf_springs *s = &f->springs;
-    const double *x = f->x;
-    double h = f->h, d[3] = {0, 0, 0}, ksum = 0, csum = 0;
     const int32_t *op = s->partner + (size_t)i * s->stride;
     const double *oL = s->rest + (size_t)i * s->stride;
     int32_t *np = s->partner2 + (size_t)i * s->stride;
     double *nL = s->rest2 + (size_t)i * s->stride;
-    int cnt = 0;
+    int hist = khist_scale > 0;
+    spring_acc acc = {{0, 0, 0}, 0, 0, 0};
+    if (i + 2 < f->n) { /* the rows of a particle two ahead: a few lines each, 384 B apart */
+        const char *pp = (const char *)(op + 2 * (size_t)s->stride);
+        const char *pl = (const char *)(oL + 2 * (size_t)s->stride);
+        for (int b = 0; b < s->count[i + 2] * 4; b += 64) __builtin_prefetch(pp + b);
+        for (int b = 0; b < s->count[i + 2] * 8; b += 64) __builtin_prefetch(pl + b);
+        grid_prefetch(&f->grid, i + 2, f->n);
+    }
+    ch->m = 0;
     for (int k = 0; k < s->count[i]; k++) {
         int j = op[k];
         mark[j] = stamp;
-        double rx = x[3 * j] - x[3 * i], ry = x[3 * j + 1] - x[3 * i + 1],
-               rz = x[3 * j + 2] - x[3 * i + 2];
-        double r = sqrt(rx * rx + ry * ry + rz * rz);
-        double L = plastic_rest(oL[k], r, f->def.yield_ratio, f->def.plasticity, f->dt_now);
-        if (L > h) continue; /* Alg. 4: springs longer than h break */
-        if (cnt < s->stride) {
-            np[cnt] = j;
-            nL[cnt] = L;
-        }
-        cnt++;
-        push_one(f, i, j, rx, ry, rz, r, L, dt, khist_scale, 1.0, d, &ksum, &csum);
+        chunk_add(f, ch, i, j, oL[k], hist);
+        if (ch->m == SPRING_CHUNK) flush_chunk(f, ch, dt, khist_scale, np, nL, s->stride, &acc);
     }
     const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
     for (int k = 0; k < f->grid.count[i]; k++) {
         int j = nb[k];
         if (mark[j] == stamp) continue;
-        double rx = x[3 * j] - x[3 * i], ry = x[3 * j + 1] - x[3 * i + 1],
-               rz = x[3 * j + 2] - x[3 * i + 2];
-        double r = sqrt(rx * rx + ry * ry + rz * rz);
-        if (r >= h) continue;
-        /* A new spring starts at its current length, so it carries no force on creation
-           (push_one adds mag = 0, and its history stiffness to the mean). */
-        if (cnt < s->stride) {
-            np[cnt] = j;
-            nL[cnt] = r;
-        }
-        cnt++;
-        push_one(f, i, j, rx, ry, rz, r, r, dt, khist_scale, 1.0, d, &ksum, &csum);
+        chunk_add(f, ch, i, j, -1.0, hist);
+        if (ch->m == SPRING_CHUNK) flush_chunk(f, ch, dt, khist_scale, np, nL, s->stride, &acc);
     }
-    for (int a = 0; a < 3; a++) f->dx[3 * i + a] = d[a];
-    if (f->khist_mean) f->khist_mean[i] = cnt > 0 ? (float)(ksum / cnt) : 0.0f;
-    s->gain[i] = csum;
-    return cnt;
+    if (ch->m) flush_chunk(f, ch, dt, khist_scale, np, nL, s->stride, &acc);
+    for (int a = 0; a < 3; a++) f->dx[3 * i + a] = acc.d[a];
+    if (f->khist_mean) f->khist_mean[i] = acc.cnt > 0 ? (float)(acc.ksum / acc.cnt) : 0.0f;
+    s->gain[i] = acc.csum;
+    return acc.cnt;
 }
 
 /* Alg. 3 with Eq. 6 for particle i over its current springs, saturated: gathers -D/2 of each
@@ -240,9 +328,10 @@ int springs_step(stf_fluid *f, double dt)
 #pragma omp parallel reduction(max : most)
         {
             int64_t *mark = s->mark + (size_t)omp_get_thread_num() * (size_t)s->n_alloc;
+            spring_chunk ch;
 #pragma omp for schedule(static)
             for (int i = 0; i < n; i++) {
-                s->count2[i] = adjust_one(f, i, base + i, mark, dt, khist_scale);
+                s->count2[i] = adjust_one(f, i, base + i, mark, dt, khist_scale, &ch);
                 if (s->count2[i] > most) most = s->count2[i];
             }
         }
