@@ -60,9 +60,15 @@
 
 #define PI 3.14159265358979323846
 
+/* A neighbour pair: j and grad W_ij (1/m^4, float: the pair arrays are streamed on every
+ * pass, so their size is the cost). */
+typedef struct cy_pair {
+    int32_t j;
+    float g[3];
+} cy_pair;
+
 typedef struct cy_state {
     int cap;             /* particles the arrays hold */
-    int stride;          /* pair-array stride (the grid's) */
     double rho0;         /* rest density, kg/m^3 */
     double wall_rho[WALL_BINS + 1];  /* wall density by distance, kg/m^3 */
     double wall_grad[WALL_BINS + 1]; /* |sum_b m grad W_ib| by distance, kg/m^4 */
@@ -74,8 +80,7 @@ typedef struct cy_state {
     double *nu;          /* n: kinematic viscosity of the step, m^2/s */
     double *vel;         /* 3n: v** */
     double *b, *dv, *r, *p, *Ap; /* 3n each: viscosity solve */
-    float *lap;          /* cap * stride: m (r.grad W)/(r^2 + 0.01 h^2) per pair, kg/m^5 (float:
-                            the pair arrays are read every pass, so their size is the cost) */
+    float *lap;          /* per pair (as pair): m (r.grad W)/(r^2 + 0.01 h^2), kg/m^5 */
     double wall_lap[WALL_BINS + 1]; /* the same summed over a wall's lattice, with Morris'
                                        mirror velocity (see tables), by distance */
     /* The quarter-space behind two perpendicular faces of a container, by the distances to
@@ -86,8 +91,12 @@ typedef struct cy_state {
     double quad_lap[WALL_BINS + 1][WALL_BINS + 1];
     double *lw;          /* n: sum over walls of wall_lap */
     double *lwv;         /* 3n: sum over walls of wall_lap * v_wall */
-    float *grad;         /* 3 * cap * stride: grad W_ij of each neighbour pair, 1/m^4 (float) */
-    size_t grad_cap;
+    cy_pair *pair;       /* off[n]: each particle's neighbours within h, compact (CSR) */
+    int32_t *off;        /* n + 1: particle i's pairs are pair[off[i] .. off[i + 1]) */
+    size_t pair_cap;
+    double *kr;          /* n: kappa_i / rho_i of the current iteration, m^5/(kg s^2) */
+    double *irho;        /* n: 1 / rho_i */
+    double *mu;          /* n: rho_i nu_i, dynamic viscosity, Pa s */
     char *hit;
     int warm_n;          /* particles ktot holds the last step's totals of (0: none) */
     stf_solver_stats stats;
@@ -279,7 +288,11 @@ void cy_free(stf_fluid *f)
     double *arrays[] = {c->rho, c->S,  c->kappa, c->ktot, c->rhostar, c->gw, c->qw, c->wv,
                         c->D,   c->nu, c->vel,   c->b,    c->dv,      c->r,  c->p,  c->Ap};
     for (size_t k = 0; k < sizeof arrays / sizeof *arrays; k++) free(arrays[k]);
-    free(c->grad);
+    free(c->pair);
+    free(c->off);
+    free(c->kr);
+    free(c->irho);
+    free(c->mu);
     free(c->lap);
     free(c->lw);
     free(c->lwv);
@@ -296,23 +309,44 @@ static int grow(double **p, size_t count)
     return 0;
 }
 
+/* Room for the pair arrays of `pairs` pairs. 0 / -1. */
+static int reserve_pairs(cy_state *c, size_t pairs)
+{
+    if (pairs <= c->pair_cap) return 0;
+    pairs += pairs / 4 + 64;
+    cy_pair *q = realloc(c->pair, pairs * sizeof *q);
+    if (!q) return -1;
+    c->pair = q;
+    float *l = realloc(c->lap, pairs * sizeof *l);
+    if (!l) return -1;
+    c->lap = l;
+    c->pair_cap = pairs;
+    return 0;
+}
+
+/* Compact offsets of the grid's neighbour lists (serial: a prefix sum) and room for them. */
+static int pair_offsets(stf_fluid *f)
+{
+    cy_state *c = f->cy;
+    size_t total = 0;
+    for (int i = 0; i < f->n; i++) {
+        c->off[i] = (int32_t)total;
+        total += (size_t)f->grid.count[i];
+    }
+    if (total > INT32_MAX) return -1;
+    c->off[f->n] = (int32_t)total;
+    return reserve_pairs(c, total);
+}
+
 static int reserve(stf_fluid *f, int n)
 {
     cy_state *c = f->cy;
-    size_t pairs = (size_t)n * (size_t)f->grid.stride * 3;
-    if (pairs > c->grad_cap) {
-        float *g = realloc(c->grad, pairs * sizeof *g);
-        if (!g) return -1;
-        c->grad = g;
-        float *l = realloc(c->lap, pairs / 3 * sizeof *l);
-        if (!l) return -1;
-        c->lap = l;
-        c->grad_cap = pairs;
-    }
-    c->stride = f->grid.stride;
     size_t N = (size_t)n;
     if (n <= c->cap) return 0;
-    if (grow(&c->rho, N) || grow(&c->S, N) || grow(&c->kappa, N) || grow(&c->ktot, N) ||
+    int32_t *off = realloc(c->off, (N + 1) * sizeof *off);
+    if (!off) return -1;
+    c->off = off;
+    if (grow(&c->kr, N) || grow(&c->irho, N) || grow(&c->mu, N) || grow(&c->rho, N) || grow(&c->S, N) || grow(&c->kappa, N) || grow(&c->ktot, N) ||
         grow(&c->rhostar, N) || grow(&c->gw, 3 * N) || grow(&c->qw, N) || grow(&c->wv, 9 * N) ||
         grow(&c->D, 6 * N) || grow(&c->nu, N) || grow(&c->vel, 3 * N) || grow(&c->b, 3 * N) ||
         grow(&c->dv, 3 * N) || grow(&c->r, 3 * N) || grow(&c->p, 3 * N) || grow(&c->Ap, 3 * N) ||
@@ -425,20 +459,23 @@ static void density_one(stf_fluid *f, int i)
     double h = f->h, m = f->mass, rho = c->rho[i] + m * kernel_w(0, h);
     double sum[3] = {c->gw[3 * i], c->gw[3 * i + 1], c->gw[3 * i + 2]}, sq = 0;
     const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
-    float *gr = c->grad + (size_t)i * c->stride * 3, *lp = c->lap + (size_t)i * c->stride;
+    cy_pair *pr = c->pair + c->off[i];
+    float *lp = c->lap + c->off[i];
     for (int k = 0; k < f->grid.count[i]; k++) {
         double r[3];
         double len = pair_vec(f, i, nb[k], r);
         rho += m * kernel_w(len, h);
         double s = len > 1e-12 * h ? kernel_dw(len, h) / len : 0;
         lp[k] = (float)(m * s * len * len / (len * len + 0.01 * h * h));
+        pr[k].j = nb[k];
         for (int a = 0; a < 3; a++) {
-            gr[3 * k + a] = (float)(s * r[a]);
+            pr[k].g[a] = (float)(s * r[a]);
             sum[a] += m * s * r[a];
         }
         sq += m * m * s * s * len * len;
     }
     c->rho[i] = rho;
+    c->irho[i] = 1.0 / rho;
     c->S[i] = sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2] + sq;
 }
 
@@ -448,33 +485,49 @@ static void density_one(stf_fluid *f, int i)
 static double predict_one(const stf_fluid *f, const double *v, int i, double dt)
 {
     const cy_state *c = f->cy;
-    double div = 0, m = f->mass;
-    const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
-    const float *gr = c->grad + (size_t)i * c->stride * 3;
+    double d0 = 0, d1 = 0, d2 = 0, m = f->mass;
+    const cy_pair *pr = c->pair + c->off[i], *end = c->pair + c->off[i + 1];
     const double *vi = v + 3 * i;
-    for (int k = 0; k < f->grid.count[i]; k++) {
-        const double *vj = v + 3 * nb[k];
-        div += m * ((vi[0] - vj[0]) * gr[3 * k] + (vi[1] - vj[1]) * gr[3 * k + 1] +
-                    (vi[2] - vj[2]) * gr[3 * k + 2]);
+    for (; pr < end; pr++) {
+        const double *vj = v + 3 * pr->j;
+        d0 += (vi[0] - vj[0]) * pr->g[0];
+        d1 += (vi[1] - vj[1]) * pr->g[1];
+        d2 += (vi[2] - vj[2]) * pr->g[2];
     }
     const double *G = c->gw + 3 * i;
-    div += vi[0] * G[0] + vi[1] * G[1] + vi[2] * G[2] - c->qw[i];
+    double div = m * (d0 + d1 + d2) + vi[0] * G[0] + vi[1] * G[1] + vi[2] * G[2] - c->qw[i];
     return c->rho[i] + dt * div;
 }
 
-/* Velocity change of Algorithm 1's last loop for the current kappa (written to out). */
-static void pressure_dv_one(const stf_fluid *f, int i, double dt, double *out)
+/* rho*_i from v, and the next iteration's k_i from it (Eq. 21; only compression is
+ * corrected, scaled by the relaxation omega), with kappa_i / rho_i. */
+static void predict_kappa_one(const stf_fluid *f, const double *v, int i, double dt, double omega)
 {
-    const cy_state *c = f->cy;
-    double m = f->mass, ki = c->kappa[i] / c->rho[i], d[3] = {0, 0, 0};
-    const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
-    const float *gr = c->grad + (size_t)i * c->stride * 3;
-    for (int k = 0; k < f->grid.count[i]; k++) {
-        int j = nb[k];
-        double w = m * (ki + c->kappa[j] / c->rho[j]);
-        for (int a = 0; a < 3; a++) d[a] += w * gr[3 * k + a];
+    cy_state *c = f->cy;
+    double rs = predict_one(f, v, i, dt);
+    c->rhostar[i] = rs;
+    double k = c->S[i] > 0 ? (rs - c->rho0) * c->rho[i] / (dt * dt * c->S[i]) : 0;
+    c->kappa[i] = k > 0 ? omega * k : 0;
+    c->kr[i] = c->kappa[i] * c->irho[i];
+}
+
+/* Algorithm 1's last loop for the current kappa: v_i += -dt sum_j m (k_i/rho_i + k_j/rho_j)
+ * grad W_ij (+ the walls), and the particle's total. Only kappa / rho of the neighbours is
+ * read, so v_i is updated in place. */
+static void pressure_dv_one(stf_fluid *f, int i, double dt)
+{
+    cy_state *c = f->cy;
+    double m = f->mass, ki = c->kr[i], d[3] = {0, 0, 0};
+    const cy_pair *pr = c->pair + c->off[i], *end = c->pair + c->off[i + 1];
+    const double *kr = c->kr;
+    for (; pr < end; pr++) {
+        double w = ki + kr[pr->j];
+        d[0] += w * pr->g[0];
+        d[1] += w * pr->g[1];
+        d[2] += w * pr->g[2];
     }
-    for (int a = 0; a < 3; a++) out[3 * i + a] = -dt * (d[a] + ki * c->gw[3 * i + a]);
+    for (int a = 0; a < 3; a++) f->v[3 * i + a] -= dt * (m * d[a] + ki * c->gw[3 * i + a]);
+    c->ktot[i] += c->kappa[i];
 }
 
 static double mean_error(const stf_fluid *f)
@@ -483,23 +536,6 @@ static double mean_error(const stf_fluid *f)
     double sum = 0; /* serial: the same result for any thread count */
     for (int i = 0; i < f->n; i++) sum += c->rhostar[i] > c->rho0 ? c->rhostar[i] - c->rho0 : 0;
     return f->n > 0 ? sum / f->n / c->rho0 : 0;
-}
-
-/* Applies kappa as velocity changes and adds it to the particles' totals. */
-static void pressure_apply(stf_fluid *f, double dt)
-{
-    cy_state *c = f->cy;
-    int n = f->n;
-    double *v = f->v, *dv = c->dv;
-#pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) pressure_dv_one(f, i, dt, dv);
-#pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) {
-        for (int a = 0; a < 3; a++) v[3 * i + a] += dv[3 * i + a];
-        c->ktot[i] += c->kappa[i];
-    }
-#pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) c->rhostar[i] = predict_one(f, v, i, dt);
 }
 
 /* Algorithm 1: k_i from Eq. 21 for every particle (Jacobi), applied together, until the mean
@@ -513,30 +549,25 @@ static void pressure_apply(stf_fluid *f, double dt)
  * k_i overshoots where the neighbours are compressed too (their corrections add to the
  * particle's own), and an overshoot becomes expansion that is not corrected (no tension) and
  * falls back as a harder compression: at dt = 5 ms the 1 m dam break column blew up from its
- * floor layer with omega = 1 and ran with omega = 0.5 and warm_start 0.5 (measured). */
-static void pressure_project(stf_fluid *f, double dt)
+ * floor layer with omega = 1 and ran with omega = 0.5 and warm_start 0.5 (measured).
+ * kappa, kr and ktot were set by the density pass (the warm start, or zero). Each iteration
+ * is two neighbour passes: the velocity change, then rho* with the next k_i. */
+static void pressure_project(stf_fluid *f, double dt, double w)
 {
     cy_state *c = f->cy;
     int n = f->n, iter = 0;
-    double err, w = c->warm_n == n ? f->def.cy.warm_start : 0;
-    double omega = f->def.cy.relaxation > 0 ? f->def.cy.relaxation : 1.0;
+    double err, omega = f->def.cy.relaxation > 0 ? f->def.cy.relaxation : 1.0;
+    if (w > 0) {
 #pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) {
-        c->kappa[i] = w * c->ktot[i];
-        c->ktot[i] = 0;
+        for (int i = 0; i < n; i++) pressure_dv_one(f, i, dt);
     }
-    if (w > 0) pressure_apply(f, dt); /* also predicts rho* */
-    else {
 #pragma omp parallel for schedule(static)
-        for (int i = 0; i < n; i++) c->rhostar[i] = predict_one(f, f->v, i, dt);
-    }
+    for (int i = 0; i < n; i++) predict_kappa_one(f, f->v, i, dt, omega);
     do {
 #pragma omp parallel for schedule(static)
-        for (int i = 0; i < n; i++) { /* Eq. 21; only compression is corrected */
-            double k = c->S[i] > 0 ? (c->rhostar[i] - c->rho0) * c->rho[i] / (dt * dt * c->S[i]) : 0;
-            c->kappa[i] = k > 0 ? omega * k : 0;
-        }
-        pressure_apply(f, dt);
+        for (int i = 0; i < n; i++) pressure_dv_one(f, i, dt);
+#pragma omp parallel for schedule(static)
+        for (int i = 0; i < n; i++) predict_kappa_one(f, f->v, i, dt, omega);
         err = mean_error(f);
         iter++;
     } while ((err > f->def.cy.eta || iter < f->def.cy.min_pressure_iterations) &&
@@ -554,14 +585,13 @@ static void strain_one(const stf_fluid *f, const double *u, int i, int with_wall
 {
     const cy_state *c = f->cy;
     double L[9] = {0}, m = f->mass;
-    const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
-    const float *gr = c->grad + (size_t)i * c->stride * 3;
+    const cy_pair *pr = c->pair + c->off[i], *end = c->pair + c->off[i + 1];
     const double *ui = u + 3 * i;
-    for (int k = 0; k < f->grid.count[i]; k++) {
-        const double *uj = u + 3 * nb[k];
+    for (; pr < end; pr++) {
+        const double *uj = u + 3 * pr->j;
         for (int a = 0; a < 3; a++) {
             double du = m * (uj[a] - ui[a]);
-            for (int b = 0; b < 3; b++) L[3 * a + b] += du * gr[3 * k + b];
+            for (int b = 0; b < 3; b++) L[3 * a + b] += du * pr->g[b];
         }
     }
     const double *G = c->gw + 3 * i;
@@ -595,16 +625,18 @@ static __attribute__((unused)) void sym_dot(const double *T, const double *g, do
 static void viscous_one(const stf_fluid *f, const double *u, int i, int with_walls, double *out)
 {
     const cy_state *c = f->cy;
-    double a[3] = {0, 0, 0}, mi = c->rho[i] * c->nu[i];
-    const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
-    const float *lp = c->lap + (size_t)i * c->stride;
+    double a[3] = {0, 0, 0}, mi = c->mu[i];
+    const cy_pair *pr = c->pair + c->off[i];
+    const float *lp = c->lap + c->off[i];
     const double *ui = u + 3 * i;
-    for (int k = 0; k < f->grid.count[i]; k++) {
-        int j = nb[k];
+    const double *mu = c->mu, *irho = c->irho;
+    for (int k = 0, cnt = c->off[i + 1] - c->off[i]; k < cnt; k++) {
+        int j = pr[k].j;
         const double *uj = u + 3 * j;
-        double w = lp[k] * (mi + c->rho[j] * c->nu[j]) / (c->rho[i] * c->rho[j]);
+        double w = lp[k] * (mi + mu[j]) * irho[j]; /* / rho_i below */
         for (int e = 0; e < 3; e++) a[e] += w * (ui[e] - uj[e]);
     }
+    for (int e = 0; e < 3; e++) a[e] *= c->irho[i];
     double ww = c->nu[i] * (c->rho[i] + c->rho0) / (c->rho[i] * c->rho0);
     for (int e = 0; e < 3; e++)
         out[3 * i + e] = a[e] + ww * (c->lw[i] * ui[e] - (with_walls ? c->lwv[3 * i + e] : 0));
@@ -636,7 +668,10 @@ static void viscosity_field(stf_fluid *f, const double *v)
     if (cd->n == 1 || cd->K == 0 || cd->mu0 == cd->mu_inf) { /* Eq. 3 is constant: Newtonian */
         double nu = stf_cy_viscosity(cd, 0);
 #pragma omp parallel for schedule(static)
-        for (int i = 0; i < n; i++) c->nu[i] = nu;
+        for (int i = 0; i < n; i++) {
+            c->nu[i] = nu;
+            c->mu[i] = c->rho[i] * nu;
+        }
         c->stats.min_viscosity = c->stats.max_viscosity = nu;
         return;
     }
@@ -647,6 +682,7 @@ static void viscosity_field(stf_fluid *f, const double *v)
         double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] +
                     2 * (d[3] * d[3] + d[4] * d[4] + d[5] * d[5]);
         c->nu[i] = stf_cy_viscosity(&f->def.cy, sqrt(0.5 * dd));
+        c->mu[i] = c->rho[i] * c->nu[i];
     }
     double lo = n ? c->nu[0] : 0, hi = lo;
     for (int i = 1; i < n; i++) {
@@ -764,20 +800,23 @@ static int cy_substep(stf_fluid *f, double dt)
         f->next_reorder = f->steps + f->reorder_interval;
     }
     if (grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
-    if (reserve(f, n) != 0) goto oom;
+    if (reserve(f, n) != 0 || pair_offsets(f) != 0) goto oom;
     f->stage_seconds[STAGE_GRID] += omp_get_wtime() - t0;
     t0 = omp_get_wtime();
+    /* one pass: walls, density and S_i, the warm start's k_i, gravity (Eq. 11) */
+    double w = c->warm_n == n ? f->def.cy.warm_start : 0, g[3] = {0, 0, 0};
+    if (has(f, STF_EFFECT_GRAVITY))
+        for (int a = 0; a < 3; a++) g[a] = f->def.gravity[a];
 #pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) walls_one(f, i);
-#pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) density_one(f, i);
-    if (has(f, STF_EFFECT_GRAVITY)) { /* Eq. 11 */
-        const double *g = f->def.gravity;
-#pragma omp parallel for schedule(static)
-        for (int i = 0; i < n; i++)
-            for (int a = 0; a < 3; a++) f->v[3 * i + a] += dt * g[a];
+    for (int i = 0; i < n; i++) {
+        walls_one(f, i);
+        density_one(f, i);
+        c->kappa[i] = w * c->ktot[i];
+        c->kr[i] = c->kappa[i] * c->irho[i];
+        c->ktot[i] = 0;
+        for (int a = 0; a < 3; a++) f->v[3 * i + a] += dt * g[a];
     }
-    pressure_project(f, dt);
+    pressure_project(f, dt, w);
     f->stage_seconds[STAGE_PRESSURE] += omp_get_wtime() - t0;
     /* positions are unchanged so far: the checks look at the velocities */
 #pragma omp parallel for schedule(static)
