@@ -2,7 +2,7 @@
  * (the second paper, "003": Eq. 3, 9-26, Algorithms 1 and 2).
  *
  * One step (Algorithm 2):
- *   1. neighbours (the shared grid), densities rho_i = sum_j m W_ij + walls (Eq. 6) and the
+ *   1. neighbours (cy_neighbours; the shared grid if periodic), densities rho_i = sum_j m W_ij + walls (Eq. 6) and the
  *      per-particle factors S_i of Eq. 20-21;
  *   2. v* = v + dt g (Eq. 11);
  *   3. pressure projection (Algorithm 1): predicted densities rho*_i = rho_i + dt sum_j m
@@ -510,9 +510,10 @@ static int cy_neighbours(stf_fluid *f)
     const double *x = f->x;
 #pragma omp parallel for schedule(static) reduction(min : lo0, lo1, lo2) reduction(max : hi0, hi1, hi2)
     for (int i = 0; i < n; i++) {
-        lo0 = fmin(lo0, x[3 * i]), hi0 = fmax(hi0, x[3 * i]);
-        lo1 = fmin(lo1, x[3 * i + 1]), hi1 = fmax(hi1, x[3 * i + 1]);
-        lo2 = fmin(lo2, x[3 * i + 2]), hi2 = fmax(hi2, x[3 * i + 2]);
+        const double *p = x + 3 * i; /* positions are finite (fluid_check) */
+        lo0 = p[0] < lo0 ? p[0] : lo0, hi0 = p[0] > hi0 ? p[0] : hi0;
+        lo1 = p[1] < lo1 ? p[1] : lo1, hi1 = p[1] > hi1 ? p[1] : hi1;
+        lo2 = p[2] < lo2 ? p[2] : lo2, hi2 = p[2] > hi2 ? p[2] : hi2;
     }
     if (n == 0) return 0;
     double lo[3] = {lo0, lo1, lo2}, span[3] = {hi0 - lo0, hi1 - lo1, hi2 - lo2};
@@ -984,8 +985,9 @@ static int cy_substep(stf_fluid *f, double dt)
     cy_state *c = f->cy;
     int n = f->n;
     double t0 = omp_get_wtime();
-    /* Particles are re-sorted by cell (memory locality) when the neighbour candidates are
-       rebuilt anyway, at most every reorder_interval steps, as in stf_fluid_step. */
+    /* Particles are re-sorted along the Morton curve (memory locality) every
+       reorder_interval substeps (with the shared grid of a periodic fluid: when its
+       candidates are rebuilt anyway, at most that often, as in stf_fluid_step). */
     if (grid_due(&f->grid, f->x, n, f->h) && f->steps >= f->next_reorder) {
         if (grid_sort(&f->grid, f->x, n, f->h) != 0) goto oom;
         if (c->warm_n == n) { /* the warm start's pressures follow their particles */
@@ -1088,9 +1090,9 @@ int cy_step(stf_fluid *f, double dt)
             if (most < left) sub = left / ceil(left / most * (1 - 1e-12));
         }
         f->dt_now = sub;
-        /* Verlet skin: the default (0.25 h) when the lists can last two substeps or more;
-           else they are rebuilt every substep anyway, and a thin skin (0.02 h) halves the
-           candidates to search and filter */
+        /* the shared grid's Verlet skin (periodic fluids): the default (0.25 h) when the
+           lists can last two substeps or more; else they are rebuilt every substep anyway,
+           and a thin skin (0.02 h) halves the candidates to search and filter */
         f->grid.skin = 4 * vmax * sub > 0.25 * f->h ? 0.02 : 0;
         if (cy_substep(f, sub) != 0) return -1;
         st->substeps++;
