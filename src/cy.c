@@ -519,12 +519,19 @@ static int cy_neighbours(stf_fluid *f)
     double lo[3] = {lo0, lo1, lo2}, span[3] = {hi0 - lo0, hi1 - lo1, hi2 - lo2};
     int dim[3];
     double cells = 1;
-    for (int a = 0; a < 3; a++) {
-        if (!(span[a] * inv[a] < 1e6)) return 0;
-        dim[a] = (int)floor(span[a] * inv[a]) + 1;
-        cells *= dim[a];
+    /* at most 16 cells per particle (+ 65536): a few spray particles far out make the box
+       large, and then the cells along x are coarsened (to h/2, then h) before giving up */
+    for (;;) {
+        cells = 1;
+        for (int a = 0; a < 3; a++) {
+            if (!(span[a] * inv[a] < 1e6)) return 0;
+            dim[a] = (int)floor(span[a] * inv[a]) + 1;
+            cells *= dim[a];
+        }
+        if (cells <= 16.0 * n + 65536) break;
+        if (inv[0] * h < 1.5) return 0;
+        inv[0] *= 0.5;
     }
-    if (cells > 8.0 * XCELLS * n + 65536) return 0;
     size_t ncell = (size_t)cells;
     if (ncell + 1 > c->cell_cap) {
         int32_t *cb = realloc(c->cstart, (ncell + 1) * sizeof *cb);
