@@ -2,8 +2,8 @@
  * (the second paper, "003": Eq. 3, 9-26, Algorithms 1 and 2).
  *
  * One step (Algorithm 2):
- *   1. neighbours (cy_neighbours; the shared grid if periodic), densities rho_i = sum_j m W_ij + walls (Eq. 6) and the
- *      per-particle factors S_i of Eq. 20-21;
+ *   1. neighbours (cy_neighbours; the shared grid if periodic), densities
+ *      rho_i = sum_j m W_ij + walls (Eq. 6) and the per-particle factors S_i of Eq. 20-21;
  *   2. v* = v + dt g (Eq. 11);
  *   3. pressure projection (Algorithm 1): predicted densities rho*_i = rho_i + dt sum_j m
  *      (v_i - v_j).grad W_ij (Eq. 19), per-particle stiffness k_i from Eq. 21, velocity
@@ -97,8 +97,9 @@ typedef struct cy_state {
     double *kr;          /* n: kappa_i / rho_i of the current iteration, m^5/(kg s^2) */
     double *irho;        /* n: 1 / rho_i */
     double *mu;          /* n: rho_i nu_i, dynamic viscosity, Pa s */
-    /* The neighbour search of a non-periodic fluid (cy_neighbours): a dense grid of cells of
-       size h over the particles' bounding box, the particles counting-sorted into it */
+    /* The neighbour search of a non-periodic fluid (cy_neighbours): a dense grid of cells
+       (h across, h / XCELLS along x) over the particles' bounding box, the particles
+       counting-sorted into it */
     int32_t *cstart;     /* ncell + 1: first sorted entry of each cell */
     size_t cell_cap;
     int32_t *cellof;     /* n: cell of each particle */
@@ -378,7 +379,8 @@ static int reserve(stf_fluid *f, int n)
     if (!i4) return -1;
     c->nbt = i4;
     if (grow(&c->sx, 3 * N)) return -1;
-    if (grow(&c->kr, N) || grow(&c->irho, N) || grow(&c->mu, N) || grow(&c->rho, N) || grow(&c->S, N) || grow(&c->kappa, N) || grow(&c->ktot, N) ||
+    if (grow(&c->kr, N) || grow(&c->irho, N) || grow(&c->mu, N) || grow(&c->rho, N) ||
+        grow(&c->S, N) || grow(&c->kappa, N) || grow(&c->ktot, N) ||
         grow(&c->rhostar, N) || grow(&c->gw, 3 * N) || grow(&c->qw, N) || grow(&c->wv, 9 * N) ||
         grow(&c->D, 6 * N) || grow(&c->nu, N) || grow(&c->vel, 3 * N) || grow(&c->b, 3 * N) ||
         grow(&c->dv, 3 * N) || grow(&c->r, 3 * N) || grow(&c->p, 3 * N) || grow(&c->Ap, 3 * N) ||
@@ -508,7 +510,8 @@ static int cy_neighbours(stf_fluid *f)
     double lo0 = INFINITY, lo1 = INFINITY, lo2 = INFINITY;
     double hi0 = -INFINITY, hi1 = -INFINITY, hi2 = -INFINITY;
     const double *x = f->x;
-#pragma omp parallel for schedule(static) reduction(min : lo0, lo1, lo2) reduction(max : hi0, hi1, hi2)
+#pragma omp parallel for schedule(static) reduction(min : lo0, lo1, lo2)                           \
+    reduction(max : hi0, hi1, hi2)
     for (int i = 0; i < n; i++) {
         const double *p = x + 3 * i; /* positions are finite (fluid_check) */
         lo0 = p[0] < lo0 ? p[0] : lo0, hi0 = p[0] > hi0 ? p[0] : hi0;
@@ -578,7 +581,9 @@ static int cy_neighbours(stf_fluid *f)
                 double dz = z < kz ? pz - (lo[2] + (z + 1) * h) : z > kz ? lo[2] + z * h - pz : 0;
                 dz = dz > 0 ? dz : 0;
                 for (int y = ky > 0 ? ky - 1 : 0; y <= ky + 1 && y < dim[1]; y++) {
-                    double dy = y < ky ? py - (lo[1] + (y + 1) * h) : y > ky ? lo[1] + y * h - py : 0;
+                    double dy = y < ky   ? py - (lo[1] + (y + 1) * h)
+                                : y > ky ? lo[1] + y * h - py
+                                         : 0;
                     dy = dy > 0 ? dy : 0;
                     double rest = reach2 - dy * dy - dz * dz;
                     if (rest <= 0) continue;
@@ -1005,9 +1010,9 @@ static int cy_substep(stf_fluid *f, double dt)
         f->next_reorder = f->steps + f->reorder_interval;
     }
     if (reserve(f, n) != 0) goto oom;
-    int dense = 0;
-    for (int a = 0; a < 3; a++) dense |= f->def.periodic[a] > 0;
-    dense = dense ? 0 : cy_neighbours(f);
+    int periodic = 0;
+    for (int a = 0; a < 3; a++) periodic |= f->def.periodic[a] > 0;
+    int dense = periodic ? 0 : cy_neighbours(f);
     if (dense < 0) goto oom;
     c->dense = dense;
     if (!dense && grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
