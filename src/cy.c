@@ -911,15 +911,15 @@ static void viscosity_solve(stf_fluid *f, double dt)
     viscosity_field(f, f->v);
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) viscous_one(f, f->v, i, 1, c->b);
-#pragma omp parallel for schedule(static)
-    for (int i = 0; i < N; i++) c->b[i] *= dt;
     c->stats.viscosity_iterations = 0;
     c->stats.viscosity_residual = 0;
     if (f->def.cy.viscosity_solver == STF_VISCOSITY_EXPLICIT) {
 #pragma omp parallel for schedule(static)
-        for (int i = 0; i < N; i++) f->v[i] += c->b[i];
+        for (int i = 0; i < N; i++) f->v[i] += dt * c->b[i];
         return;
     }
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < N; i++) c->b[i] *= dt;
     double bb = dot(c->b, c->b, N);
     if (bb > 0) {
         double *x = c->dv, *r = c->r, *p = c->p, *Ap = c->Ap;
@@ -1019,7 +1019,8 @@ static int cy_substep(stf_fluid *f, double dt)
     if (pair_offsets(f) != 0) goto oom;
     f->stage_seconds[STAGE_GRID] += omp_get_wtime() - t0;
     t0 = omp_get_wtime();
-    /* one pass: walls, density and S_i, the warm start's k_i, gravity (Eq. 11) */
+    /* one pass: walls, density and S_i, the warm start's k_i, gravity (Eq. 11), and the
+       positions at the substep's start (xprev) */
     double w = c->warm_n == n ? f->def.cy.warm_start : 0, g[3] = {0, 0, 0};
     if (has(f, STF_EFFECT_GRAVITY))
         for (int a = 0; a < 3; a++) g[a] = f->def.gravity[a];
@@ -1030,13 +1031,15 @@ static int cy_substep(stf_fluid *f, double dt)
         c->kappa[i] = w * c->ktot[i];
         c->kr[i] = c->kappa[i] * c->irho[i];
         c->ktot[i] = 0;
-        for (int a = 0; a < 3; a++) f->v[3 * i + a] += dt * g[a];
+        for (int a = 0; a < 3; a++) {
+            f->v[3 * i + a] += dt * g[a];
+            f->xprev[3 * i + a] = f->x[3 * i + a];
+        }
     }
     pressure_project(f, dt, w);
     f->stage_seconds[STAGE_PRESSURE] += omp_get_wtime() - t0;
-    /* positions are unchanged so far: the checks look at the velocities */
-#pragma omp parallel for schedule(static)
-    for (int i = 0; i < 3 * n; i++) f->xprev[i] = f->x[i];
+    /* positions are unchanged so far (xprev = x, set in the density pass): the checks look
+       at the velocities */
     if (fluid_check(f, "carreau_yasuda pressure projection")) return -1;
     t0 = omp_get_wtime();
     memcpy(c->vel, f->v, (size_t)n * 3 * sizeof *c->vel);
