@@ -625,9 +625,14 @@ static int cy_neighbours(stf_fluid *f)
  * L = S r^2 / (r^2 + 0.01 h^2). The cubic spline and its derivative inline and branch-free
  * (the nearest neighbours sit at q = 1/2 where kernel_w and kernel_dw switch branch): with
  * a = max(1 - q, 0), b = max(1/2 - q, 0), W = kw (2 a^3 - 8 b^3), dW/dr = kd (4 b^2 - a^2).
- * no-trapping-math lets the compiler turn the selects into masks and the loop into vector
- * code (two square roots and divisions at a time); no trap is enabled anywhere. */
-static __attribute__((optimize("no-trapping-math"))) void
+ * no-trapping-math lets gcc turn the selects into masks and the loop into vector code (two
+ * square roots and divisions at a time); no floating-point trap is enabled anywhere. */
+#if defined(__GNUC__) && !defined(__clang__)
+#define NO_TRAPPING_MATH __attribute__((optimize("no-trapping-math")))
+#else
+#define NO_TRAPPING_MATH
+#endif
+static NO_TRAPPING_MATH void
 kernel_terms(int nk, double R[3][CHUNK], double *restrict W, double *restrict S,
              double *restrict L, double h)
 {
