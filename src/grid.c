@@ -154,7 +154,9 @@ static int rebuild(stf_grid *g, const double *x, int n, double h)
             g->ccount[i] = find_candidates(g, x, i, rc * rc);
             if (g->ccount[i] > most) most = g->ccount[i];
         }
-        if (most <= g->cstride) break;
+        /* a full row may have lost its last candidate to a later rejected one (the
+           branch-free append overwrites the last slot): widen then too */
+        if (most < g->cstride) break;
         /* Compressed regions: widen every list and redo (rare, deterministic). */
         int stride = most + most / 2;
         int32_t *cand = realloc(g->cand, (size_t)g->n_alloc * (size_t)stride * sizeof *cand);
