@@ -143,6 +143,26 @@ rc=$?
 grep -q '^0,0.02,0,interrupted,' stopped/summary.csv && grep -q '^1,0.05,0,missing,' stopped/summary.csv ||
     { fail "a stopped sweep's summary does not say interrupted/missing"; cat stopped/summary.csv >&2; }
 
+# the stopped sweep started again: the interrupted run continues from its checkpoint
+# (stf run --resume) and ends as a plain run of the same --set's, bit for bit
+"$STF" sweep "$SCENE" --vary bodies.0.mass=0.02,0.05 --duration 5 --jobs 1 --threads 1 -o stopped 2>restarted.err ||
+    [ $? -eq 1 ] || { fail "the restarted sweep failed"; cat restarted.err >&2; }
+grep -q "run 0 continues .*run_0000.h5 from its checkpoint" restarted.err ||
+    { fail "the restarted sweep did not resume run 0"; cat restarted.err >&2; }
+"$STF" run "$SCENE" -o plain5.h5 --set bodies.0.mass=0.02 --duration 5 --threads 1 --quiet \
+    --checkpoint off || fail "plain 5 s run"
+"$PY" - <<'EOF' || fail "the resumed run differs from a plain run"
+import h5py, numpy as np
+a, b = h5py.File("stopped/run_0000.h5", "r"), h5py.File("plain5.h5", "r")
+ka = sorted(k for k in a if k.startswith("Step#"))
+assert ka == sorted(k for k in b if k.startswith("Step#")), "frames differ"
+for k in ka:
+    for d in ("x", "y", "z", "vx", "vy", "vz"):
+        assert np.array_equal(a[k][d][:], b[k][d][:]), (k, d)
+for n in a["bodies"]:
+    assert np.array_equal(a["bodies"][n]["position"][:], b["bodies"][n]["position"][:]), n
+EOF
+
 # a different sweep into the same DIR: exit 2, nothing changed
 cp serial/summary.csv before.csv
 "$STF" sweep "$SCENE" --vary bodies.0.mass=0.03 --duration 0.1 --quiet -o serial 2>other.err

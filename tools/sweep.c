@@ -11,7 +11,8 @@
  *
  * Resume: DIR/plan.txt records the runs' arguments; a sweep started again on the same DIR
  * with the same plan skips every run whose file says it ended (root attribute exit_status 0
- * or 3, written by `stf run` when it closes the file) and reruns the others. */
+ * or 3, written by `stf run` when it closes the file), continues those with a checkpoint
+ * (`stf run --resume`) and reruns the others. */
 #define _XOPEN_SOURCE 700 /* realpath */
 #include <errno.h>
 #include <fcntl.h>
@@ -33,6 +34,7 @@
 #include "cli.h"
 #include "h5io.h"
 #include "metrics.h"
+#include "state.h"
 #include "sweep.h"
 
 extern char **environ;
@@ -408,12 +410,50 @@ static int file_status(const char *path)
 
 static int done(int status) { return status == 0 || status == 3; }
 
+/* A run that was stopped after its first checkpoint (killed, interrupted) continues from it
+ * when its file was written by this run (the same scene text and duration): argv (n
+ * entries, from run_argv) loses --duration (the file keeps the run's) and gains --resume;
+ * the result is bit-identical to the run never stopped. Other files are run again from the
+ * start. Returns the new count. */
+static int resume_if_stopped(const sweep_args *a, const sweep_plan *p, int i, const char *out,
+                             char **argv, int n)
+{
+    if (access(out, R_OK) != 0 || done(file_status(out))) return n;
+    stf_scene *sc = NULL;
+    stf_h5r *r = NULL;
+    char err[512], *text = NULL;
+    double stored = 0;
+    int same = check_run(a, p, i, &sc) == 0 && stf_h5r_open(out, &r, err, sizeof err) == 0 &&
+               (text = stf_h5r_attr_string(r, "scene")) != NULL &&
+               stf_h5r_attr_double(r, "duration", &stored) == 0 &&
+               !strcmp(text, sc->text ? sc->text : "") &&
+               stored == (a->duration ? strtod(a->duration, NULL) : sc->duration);
+    free(text);
+    if (r) stf_h5r_close(r);
+    stf_scene_free(sc);
+    stf_state st = {0};
+    same = same && stf_h5_read_checkpoint(out, &st, err, sizeof err) == 0;
+    stf_state_free(&st);
+    if (!same) return n;
+    if (!a->quiet) fprintf(stderr, "stf sweep: run %d continues %s from its checkpoint\n", i, out);
+    for (int j = 0; j + 1 < n; j++)
+        if (!strcmp(argv[j], "--duration")) {
+            memmove(argv + j, argv + j + 2, (size_t)(n - j - 2) * sizeof *argv);
+            n -= 2;
+            break;
+        }
+    argv[n++] = "--resume";
+    argv[n] = NULL;
+    return n;
+}
+
 static int spawn_run(const sweep_args *a, const sweep_plan *p, int i, int threads, const char *self, pid_t *pid)
 {
     char out[4096], logp[4096], *argv[2 * (MAX_FIXED + MAX_KEYS) + 18];
     argv[0] = (char *)self;
     argv[1] = "run";
-    run_argv(a, p, i, threads, out, sizeof out, argv + 2);
+    int n = run_argv(a, p, i, threads, out, sizeof out, argv + 2);
+    resume_if_stopped(a, p, i, out, argv + 2, n);
     snprintf(logp, sizeof logp, "%s/run_%04d.log", a->dir, i);
     posix_spawn_file_actions_t fa;
     posix_spawn_file_actions_init(&fa);
@@ -747,6 +787,7 @@ int cli_sweep(int argc, char **argv)
         for (int t = 0; t < ntodo && !stop_sweep; t++) {
             char out[4096], *rargv[2 * (MAX_FIXED + MAX_KEYS) + 16];
             int n = run_argv(&a, &p, todo[t], threads, out, sizeof out, rargv);
+            n = resume_if_stopped(&a, &p, todo[t], out, rargv, n);
             int st = cli_run(n, rargv, 0);
             say_run(&a, &p, todo[t], st, who);
             if (st == 130) stop_sweep = SIGINT;
