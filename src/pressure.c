@@ -86,11 +86,7 @@ static void density_one(stf_fluid *f, int i)
     double rx[PCHUNK], ry[PCHUNK], rz[PCHUNK], w2[PCHUNK], w3[PCHUNK];
     for (int k0 = 0; k0 < f->grid.count[i]; k0 += PCHUNK) {
         int m = f->grid.count[i] - k0 < PCHUNK ? f->grid.count[i] - k0 : PCHUNK;
-        for (int e = 0; e < m; e++) {
-            int j = nb[k0 + e];
-            rx[e] = x[3 * j] - x[3 * i], ry[e] = x[3 * j + 1] - x[3 * i + 1],
-            rz[e] = x[3 * j + 2] - x[3 * i + 2];
-        }
+        gather_offsets(x, i, nb + k0, m, rx, ry, rz);
         for (int e = 0; e < m; e++) {
             double r2 = rx[e] * rx[e] + ry[e] * ry[e] + rz[e] * rz[e];
             double a = 1.0 - sqrt(r2) * inv_h;
@@ -158,10 +154,9 @@ static void relax_one(stf_fluid *f, int i, double dt)
     int same[PCHUNK];
     for (int k0 = 0; k0 < f->grid.count[i]; k0 += PCHUNK) {
         int m = f->grid.count[i] - k0 < PCHUNK ? f->grid.count[i] - k0 : PCHUNK;
+        gather_offsets(x, i, nb + k0, m, rx, ry, rz);
         for (int e = 0; e < m; e++) {
             int j = nb[k0 + e];
-            rx[e] = x[3 * j] - x[3 * i], ry[e] = x[3 * j + 1] - x[3 * i + 1],
-            rz[e] = x[3 * j + 2] - x[3 * i + 2];
             pj[e] = P[j], pnj[e] = Pn[j];
         }
         for (int e = 0; e < m; e++) {

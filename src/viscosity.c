@@ -26,10 +26,9 @@ static void gather_one(stf_fluid *f, int i, double dt)
         uz[VISC_CHUNK];
     for (int k0 = 0; k0 < f->grid.count[i]; k0 += VISC_CHUNK) {
         int m = f->grid.count[i] - k0 < VISC_CHUNK ? f->grid.count[i] - k0 : VISC_CHUNK;
+        gather_offsets(x, i, nb + k0, m, rx, ry, rz);
         for (int e = 0; e < m; e++) {
             int j = nb[k0 + e];
-            rx[e] = x[3 * j] - x[3 * i], ry[e] = x[3 * j + 1] - x[3 * i + 1],
-            rz[e] = x[3 * j + 2] - x[3 * i + 2];
             ux[e] = v[3 * i] - v[3 * j], uy[e] = v[3 * i + 1] - v[3 * j + 1],
             uz[e] = v[3 * i + 2] - v[3 * j + 2];
         }
