@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "fluid.h"
 #include "stf.h"
 
 /* Eq. 3 (Soon et al.'s second-order scheme; the product-trapezoidal rule for the Riemann-
@@ -32,6 +33,7 @@ static void fill_weights(stf_history *h, int from)
 int history_init(stf_history *h, double q, int window, int n)
 {
     memset(h, 0, sizeof *h);
+    h->old_n0 = -1;
     h->q = q;
     h->window = window;
     h->cap = window > 0 ? window + 1 : 64;
@@ -51,7 +53,9 @@ void history_free(stf_history *h)
     free(h->ring);
     free(h->w);
     free(h->D);
+    free(h->old);
     memset(h, 0, sizeof *h);
+    h->old_n0 = -1;
 }
 
 void *history_grow_zeroed(void *p, size_t old_n, size_t new_n, size_t size)
@@ -91,6 +95,7 @@ int history_resize(stf_history *h, int n)
     h->ring = ring;
     h->D = D;
     h->n_alloc = cap;
+    h->old_n0 = -1;
     return 0;
 }
 
@@ -126,9 +131,107 @@ int history_push(stf_history *h, const double *v, int n)
     return 0;
 }
 
+/* Window mode in steady state (every sum has all d + 1 lags with the interior weights), in
+ * blocks of HIST_TBLOCK samples aligned on the sample index: the sum for sample t = n0 + j
+ * of its block is
+ *     D_t = old_j + sum_{k=0..j} w_k v_{t-k},   old_j = sum_{k=j+1..d} w_k v_{t-k},
+ * where old_j only uses samples older than n0. All old_j of a block are taken in one pass
+ * over the ring (each sample read once per block instead of once per step: the direct sum
+ * reads the whole 12 n (d+1) byte ring every step and is bound by memory bandwidth). Each
+ * old_j adds its terms in the order of the samples, oldest first, and a pass started in
+ * the middle of a block (after a re-sort, a resize, a resume) adds the same terms in the same
+ * order: the sums do not depend on when old was taken, nor on the threads. */
+enum { HIST_TBLOCK = 16, HIST_CHUNK = 64 };
+
+/* old_j (j >= j0) for the elements [lo, lo + cnt) of the block, into old (stride apart):
+ * the HIST_TBLOCK x cnt sums stay in L1 while the samples stream past, each converted once.
+ * wx holds the weights padded with zeros past lag d: a term past the window adds +0 to a sum
+ * that is never -0, which leaves its bits as they were. */
+static STF_VECTOR_CLONES void old_chunk(const stf_history *h, const double *wx, int j0, int lo,
+                                        int cnt, double *old, size_t stride)
+{
+    int d = h->cap - 1;
+    size_t row = (size_t)h->n_alloc * 3;
+    double a[HIST_TBLOCK][HIST_CHUNK], v[HIST_CHUNK];
+    for (int j = 0; j < HIST_TBLOCK; j++)
+        for (int e = 0; e < HIST_CHUNK; e++) a[j][e] = 0.0;
+    for (int e = cnt; e < HIST_CHUNK; e++) v[e] = 0.0;
+    /* samples n0 - L, L = d - j0 .. 1, oldest first; lag from sample n0 + j: j + L */
+    for (int L = d - j0; L >= 1; L--) {
+        int s = h->head - j0 - L;
+        if (s < 0) s += h->cap;
+        const float *r = h->ring + (size_t)s * row + lo;
+        for (int e = 0; e < cnt; e++) v[e] = r[e];
+        const double *wl = wx + L;
+        for (int j = 0; j < HIST_TBLOCK; j++) {
+            double wk = wl[j];
+            for (int e = 0; e < HIST_CHUNK; e++) a[j][e] += wk * v[e];
+        }
+    }
+    for (int j = j0; j < HIST_TBLOCK; j++)
+        memcpy(old + (size_t)j * stride + lo, a[j], (size_t)cnt * sizeof(double));
+}
+
+/* old_j for j in [j0, HIST_TBLOCK) of the block starting at sample n0 (= newest - j0). */
+static int fill_old(stf_history *h, long n0, int j0, int n)
+{
+    int len = 3 * n, d = h->cap - 1;
+    if (h->n_old < n) {
+        free(h->old);
+        h->old = malloc((size_t)HIST_TBLOCK * (size_t)h->n_alloc * 3 * sizeof *h->old);
+        h->n_old = h->old ? h->n_alloc : 0;
+        if (!h->old) return -1;
+    }
+    double *wx = calloc((size_t)d + HIST_TBLOCK + 1, sizeof *wx);
+    if (!wx) return -1;
+    memcpy(wx, h->w, ((size_t)d + 1) * sizeof *wx);
+    size_t stride = (size_t)h->n_old * 3;
+    int nchunks = (len + HIST_CHUNK - 1) / HIST_CHUNK;
+#pragma omp parallel for schedule(static)
+    for (int c = 0; c < nchunks; c++) {
+        int lo = c * HIST_CHUNK, cnt = len - lo < HIST_CHUNK ? len - lo : HIST_CHUNK;
+        old_chunk(h, wx, j0, lo, cnt, h->old, stride);
+    }
+    free(wx);
+    h->old_n0 = n0;
+    return 0;
+}
+
+static int derivative_blocked(stf_history *h, int n)
+{
+    long t = h->pushed - 1, n0 = t - t % HIST_TBLOCK;
+    int j = (int)(t - n0);
+    if (h->old_n0 != n0 || h->n_old < n) {
+        if (fill_old(h, n0, j, n) != 0) return -1;
+    }
+    size_t stride = (size_t)h->n_old * 3, row = (size_t)h->n_alloc * 3;
+    int len = 3 * n;
+    const double *w = h->w, *old = h->old + (size_t)j * stride;
+    int nchunks = (len + HIST_CHUNK - 1) / HIST_CHUNK;
+#pragma omp parallel for schedule(static)
+    for (int c = 0; c < nchunks; c++) {
+        int lo = c * HIST_CHUNK, cnt = len - lo < HIST_CHUNK ? len - lo : HIST_CHUNK;
+        double acc[HIST_CHUNK];
+        for (int e = 0; e < cnt; e++) acc[e] = old[lo + e];
+        for (int k = j; k >= 0; k--) { /* the block's samples, oldest first */
+            int s = h->head - k;
+            if (s < 0) s += h->cap;
+            const float *r = h->ring + (size_t)s * row + lo;
+            double wk = w[k];
+            for (int e = 0; e < cnt; e++) acc[e] += wk * r[e];
+        }
+        memcpy(h->D + lo, acc, (size_t)cnt * sizeof *acc);
+    }
+    return 0;
+}
+
 void history_derivative(stf_history *h, int n)
 {
     if (h->terms) return; /* the soe push computed D */
+    /* a window longer than a block, in steady state: the blocked sum (falls back to the
+       direct one below when out of memory) */
+    if (h->window > HIST_TBLOCK && h->pushed - 1 >= h->cap && derivative_blocked(h, n) == 0)
+        return;
     /* m = the oldest lag present. While fewer than cap samples exist, the oldest one is p = 0
      * of Eq. 3 and takes the end-point weight a_{0,n}. */
     long last = h->pushed - 1;
@@ -175,6 +278,22 @@ int history_permute(stf_history *h, const int *perm, int n)
     }
     free(h->ring);
     h->ring = ring;
+    if (h->old_n0 >= 0) { /* old is per element: reordered, it equals a recomputed one */
+        size_t stride = (size_t)h->n_old * 3;
+        double *old = malloc((size_t)HIST_TBLOCK * stride * sizeof *old);
+        if (!old) {
+            h->old_n0 = -1;
+            return 0;
+        }
+#pragma omp parallel for schedule(static)
+        for (int j = 0; j < HIST_TBLOCK; j++)
+            for (int i = 0; i < n; i++)
+                for (int c = 0; c < 3; c++)
+                    old[(size_t)j * stride + 3 * (size_t)i + c] =
+                        h->old[(size_t)j * stride + 3 * (size_t)perm[i] + c];
+        free(h->old);
+        h->old = old;
+    }
     return 0;
 }
 
@@ -182,7 +301,8 @@ size_t history_bytes(const stf_history *h)
 {
     if (h->terms) return history_soe_bytes(h);
     return (size_t)h->n_alloc * ((size_t)h->cap * 3 * sizeof(float) + 3 * sizeof(double)) +
-           (size_t)h->cap * sizeof(double);
+           (size_t)h->cap * sizeof(double) +
+           (size_t)h->n_old * 3 * HIST_TBLOCK * sizeof(double);
 }
 
 int history_set_slots(stf_history *h, int cap)

@@ -20,6 +20,12 @@ typedef struct stf_history {
     int head;     /* slot of the newest sample */
     double *w;    /* cap interior weights by lag: w[0] = 1, w[k] = a_{n-k,n} for 0 < k < n */
     double *D;    /* 3 n: sum_p a_{p,n} v_p (m/s), without the dt^(1-q)/Gamma(3-q) factor */
+    /* window mode, time blocks (history.c, history_derivative): the parts of the next
+     * HIST_TBLOCK sums that come from samples older than the block, taken in one pass over
+     * the ring at the block's start (a pure function of the ring: recomputed, never saved) */
+    double *old;  /* HIST_TBLOCK * 3 n_old */
+    int n_old;    /* particles old was sized for */
+    long old_n0;  /* sample index of the block old holds (-1: none) */
     /* sum-of-exponentials mode (history_soe.c); terms == 0 for the exact ring */
     int terms;      /* K exponentials */
     double *soe_r;  /* K decay factors per step, exp(-lambda_j) */
