@@ -4,17 +4,9 @@
 # out.h5 keeps its content and no out.xmf appears.
 #
 # usage: bash cli_bad_input.sh STF_BINARY PROJECT_DIR   (run in the build's tests directory)
-set -u
+. "$(dirname "$0")/cli_lib.sh" cli_bad_input "$@"
 
-STF=${1:?usage: cli_bad_input.sh STF_BINARY PROJECT_DIR}
-PROJ=${2:?usage: cli_bad_input.sh STF_BINARY PROJECT_DIR}
 BASE="$PROJ/tests/scenes/small_drop.yaml"
-WORK=$(mktemp -d "${PWD}/cli_bad_input.XXXXXX") || { echo "cli_bad_input: no work dir" >&2; exit 1; }
-trap 'rm -rf "$WORK"' EXIT
-cd "$WORK" || exit 1
-
-fails=0
-fail() { echo "cli_bad_input: FAIL: $*" >&2; fails=$((fails + 1)); }
 
 [ -r "$BASE" ] || { echo "cli_bad_input: $BASE missing" >&2; exit 1; }
 

@@ -10,15 +10,8 @@
 #  - table1 refuses a missing scene with exit 2, and an unknown benchmark is exit 2;
 #  - history.terms is refused (exit 2, key named) without mode soe and outside [1, 64].
 # usage: bash cli_bench.sh STF_BINARY PROJECT_DIR
-set -u
-STF=${1:?usage: cli_bench.sh STF_BINARY PROJECT_DIR}
-PROJ=${2:?usage: cli_bench.sh STF_BINARY PROJECT_DIR}
+. "$(dirname "$0")/cli_lib.sh" cli_bench "$@"
 SCENE="$PROJ/scenes/bowling_ball.yaml"
-WORK=$(mktemp -d "${PWD}/cli_bench.XXXXXX") || exit 1
-trap 'rm -rf "$WORK"' EXIT
-cd "$WORK" || exit 1
-fails=0
-fail() { echo "cli_bench: FAIL: $*" >&2; fails=$((fails + 1)); }
 export OMP_NUM_THREADS=1
 
 "$STF" bench effects "$SCENE" --set fluid.spacing=0.04 --steps 3 --threads 1 >effects.out 2>effects.err \

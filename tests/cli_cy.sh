@@ -9,18 +9,10 @@
 #   - every frame carries the solver statistics (pressure iterations >= 2, density error < eta).
 #
 # usage: bash cli_cy.sh STF_BINARY PROJECT_DIR   (run in the build's tests directory)
-set -u
+. "$(dirname "$0")/cli_lib.sh" cli_cy "$@"
 
-STF=${1:?usage: cli_cy.sh STF_BINARY PROJECT_DIR}
-PROJ=${2:?usage: cli_cy.sh STF_BINARY PROJECT_DIR}
 SC="$PROJ/scenes"
-WORK=$(mktemp -d "${PWD}/cli_cy.XXXXXX") || { echo "cli_cy: no work dir" >&2; exit 1; }
-trap 'rm -rf "$WORK"' EXIT
-cd "$WORK" || exit 1
 export OMP_NUM_THREADS=1
-
-fails=0
-fail() { echo "cli_cy: FAIL: $*" >&2; fails=$((fails + 1)); }
 
 # ---- bad input: exit 2, FILE:LINE:COL: KEY, nothing written
 printf 'precious %s\n' "$$" >out.h5

@@ -10,19 +10,11 @@
 # low, README "The Carreau-Yasuda model".)
 #
 # usage: bash cli_cy_periodic.sh STF_BINARY PROJECT_DIR   (run in the build's tests directory)
-set -u
+. "$(dirname "$0")/cli_lib.sh" cli_cy_periodic "$@"
 
-STF=${1:?usage: cli_cy_periodic.sh STF_BINARY PROJECT_DIR}
-PROJ=${2:?usage: cli_cy_periodic.sh STF_BINARY PROJECT_DIR}
 SCENE="$PROJ/scenes/cy_film_flow.yaml"
 CHECK="$PROJ/tests/cy_film_profile.py"
-WORK=$(mktemp -d "${PWD}/cli_cy_periodic.XXXXXX") || { echo "cli_cy_periodic: no work dir" >&2; exit 1; }
-trap 'rm -rf "$WORK"' EXIT
-cd "$WORK" || exit 1
 export OMP_NUM_THREADS=1
-
-fails=0
-fail() { echo "cli_cy_periodic: FAIL: $*" >&2; fails=$((fails + 1)); }
 
 "$STF" check "$SCENE" -o newton.h5 --quiet >newton.check 2>&1 ||
     fail "newtonian film: $(cat newton.check)"

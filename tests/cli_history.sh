@@ -5,18 +5,10 @@
 # input exits 2 (with FILE:LINE for a bad profile).
 #
 # usage: bash cli_history.sh STF_BINARY PROJECT_DIR   (run in the build's tests directory)
-set -u
+. "$(dirname "$0")/cli_lib.sh" cli_history "$@"
 
-STF=${1:?usage: cli_history.sh STF_BINARY PROJECT_DIR}
-PROJ=${2:?usage: cli_history.sh STF_BINARY PROJECT_DIR}
 PY=/usr/bin/python3
-WORK=$(mktemp -d "${PWD}/cli_history.XXXXXX") || { echo "cli_history: cannot make a work dir" >&2; exit 1; }
-trap 'rm -rf "$WORK"' EXIT
-cd "$WORK" || exit 1
 : "$PROJ"
-
-fails=0
-fail() { echo "cli_history: FAIL: $*" >&2; fails=$((fails + 1)); }
 
 # ---------------------------------------------------------------- default run
 "$STF" history -o out --k-hist 2.5 >stdout.txt 2>stderr.txt

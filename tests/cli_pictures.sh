@@ -3,17 +3,9 @@
 # image, and an unreadable file exits 2.
 #
 # usage: bash cli_pictures.sh STF_BINARY PROJECT_DIR   (run in the build's tests directory)
-set -u
+. "$(dirname "$0")/cli_lib.sh" cli_pictures "$@"
 
-STF=${1:?usage: cli_pictures.sh STF_BINARY PROJECT_DIR}
-PROJ=${2:?usage: cli_pictures.sh STF_BINARY PROJECT_DIR}
 PY=python3
-WORK=$(mktemp -d "${PWD}/cli_pictures.XXXXXX") || { echo "cli_pictures: cannot make a work dir" >&2; exit 1; }
-trap 'rm -rf "$WORK"' EXIT
-cd "$WORK" || exit 1
-
-fails=0
-fail() { echo "cli_pictures: FAIL: $*" >&2; fails=$((fails + 1)); }
 
 # check_png FILE [W H]: a PNG (signature, IHDR), optionally of size W x H, whose pixels are
 # not all the same (IDAT decompressed, filter bytes dropped, more than one distinct value).

@@ -14,13 +14,10 @@
 # The processes are frozen (SIGSTOP) once their file has grown past a size, then signalled,
 # so the stop lands mid-run whatever the machine's load.
 # Args: STF_BINARY PROJECT_DIR
-set -u
-stf=$1; src=$2
-tmp=$(mktemp -d "${PWD}/cli_resume.XXXXXX"); trap 'rm -rf "$tmp"' EXIT; cd "$tmp" || exit 1
+. "$(dirname "$0")/cli_lib.sh" cli_resume "$@"
+stf=$STF; src=$PROJ
 export OMP_NUM_THREADS=1 OMP_WAIT_POLICY=passive
 scene=$src/tests/scenes/small_drop.yaml
-fails=0
-fail() { echo "cli_resume: FAIL: $*" >&2; fails=$((fails + 1)); }
 
 cat >same.py <<'PY'
 # same.py A B: every dataset and attribute of A and B equal byte for byte (but wall_seconds)

@@ -4,18 +4,10 @@
 # h5dump reads the file, `stf report --json` prints valid JSON, and --set / --unset runs work.
 #
 # usage: bash cli_run.sh STF_BINARY PROJECT_DIR   (run in the build's tests directory)
-set -u
+. "$(dirname "$0")/cli_lib.sh" cli_run "$@"
 
-STF=${1:?usage: cli_run.sh STF_BINARY PROJECT_DIR}
-PROJ=${2:?usage: cli_run.sh STF_BINARY PROJECT_DIR}
 SCENE="$PROJ/tests/scenes/small_drop.yaml"
 PY=/usr/bin/python3
-WORK=$(mktemp -d "${PWD}/cli_run.XXXXXX") || { echo "cli_run: cannot make a work dir" >&2; exit 1; }
-trap 'rm -rf "$WORK"' EXIT
-cd "$WORK" || exit 1
-
-fails=0
-fail() { echo "cli_run: FAIL: $*" >&2; fails=$((fails + 1)); }
 
 # run NAME ARGS...: runs stf, expects exit 0.
 run() {

@@ -10,13 +10,10 @@
 # (an early version of this writer tore 1 of 6 under load); at this scene's 50 frames/s 0 of
 # 80 under load. The kills here use 50 frames/s.
 # Args: STF_BINARY PROJECT_DIR
-set -u
-stf=$1; src=$2
-tmp=$(mktemp -d "${PWD}/cli_signals.XXXXXX"); trap 'rm -rf "$tmp"' EXIT; cd "$tmp" || exit 1
+. "$(dirname "$0")/cli_lib.sh" cli_signals "$@"
+stf=$STF; src=$PROJ
 export OMP_NUM_THREADS=1 OMP_WAIT_POLICY=passive
 scene=$src/tests/scenes/small_drop.yaml
-fails=0
-fail() { echo "cli_signals: FAIL: $*" >&2; fails=$((fails + 1)); }
 
 # waits (up to 20 s) until FILE has grown past its header: frames are being written (h5py
 # cannot look while the writer holds HDF5's file lock)

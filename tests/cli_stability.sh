@@ -11,13 +11,11 @@
 # by the pressure in the first 10 ms: +2% at dt = 1 ms, +6% at 2 ms), whose potential
 # energy is not part of E.
 # Args: STF_BINARY PROJECT_DIR [CASE...]   (no CASE: all)
-set -u
-stf=$1; src=$2; shift 2
-tmp=$(mktemp -d "${PWD}/cli_stability.XXXXXX"); trap 'rm -rf "$tmp"' EXIT; cd "$tmp" || exit 1
+. "$(dirname "$0")/cli_lib.sh" cli_stability "$@"
+stf=$STF; src=$PROJ; shift 2
 export OMP_NUM_THREADS=1 OMP_WAIT_POLICY=passive
 pool=$src/tests/scenes/stab_pool.yaml
 check=$src/tests/stability_check.py
-fails=0
 only=" $* "
 
 # run_case NAME SCENE "CHECK ARGS" --set ... : runs, checks, prints the figures

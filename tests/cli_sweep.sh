@@ -9,19 +9,11 @@
 # nothing; the plot is a PNG.
 #
 # usage: bash cli_sweep.sh STF_BINARY PROJECT_DIR   (run in the build's tests directory)
-set -u
+. "$(dirname "$0")/cli_lib.sh" cli_sweep "$@"
 
-STF=$(realpath "${1:?usage: cli_sweep.sh STF_BINARY PROJECT_DIR}")
-PROJ=${2:?usage: cli_sweep.sh STF_BINARY PROJECT_DIR}
 SCENE="$PROJ/tests/scenes/small_drop.yaml"
 PY=/usr/bin/python3
-WORK=$(mktemp -d "${PWD}/cli_sweep.XXXXXX") || { echo "cli_sweep: cannot make a work dir" >&2; exit 1; }
-trap 'rm -rf "$WORK"' EXIT
-cd "$WORK" || exit 1
 export OMP_NUM_THREADS=1 OMP_WAIT_POLICY=passive
-
-fails=0
-fail() { echo "cli_sweep: FAIL: $*" >&2; fails=$((fails + 1)); }
 
 # The scene with an expect block: the first holds for every run, the second only for the
 # lighter balls (the fluid's top speed grows with the ball's mass: see the rows).

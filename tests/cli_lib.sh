@@ -1,0 +1,16 @@
+# cli_lib.sh - the common start of the cli_*.sh tests. Source it first:
+#     . "$(dirname "$0")/cli_lib.sh" NAME "$@"
+# It reads the test's arguments STF_BINARY PROJECT_DIR into STF and PROJ, makes a work
+# directory that is removed at exit and enters it (WORK), and defines fails (0) and
+# fail MESSAGE, which prints "NAME: FAIL: MESSAGE" and counts it. The environment
+# (OpenMP threads) stays the test's to set.
+set -u
+cli_name=$1
+STF=${2:?usage: $cli_name.sh STF_BINARY PROJECT_DIR}
+PROJ=${3:?usage: $cli_name.sh STF_BINARY PROJECT_DIR}
+STF=$(realpath "$STF" 2>/dev/null || echo "$STF") # still valid once in WORK
+WORK=$(mktemp -d "${PWD}/$cli_name.XXXXXX") || { echo "$cli_name: cannot make a work dir" >&2; exit 1; }
+trap 'rm -rf "$WORK"' EXIT
+cd "$WORK" || exit 1
+fails=0
+fail() { echo "$cli_name: FAIL: $*" >&2; fails=$((fails + 1)); }
