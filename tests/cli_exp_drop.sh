@@ -8,8 +8,7 @@
 stf=$1; src=$2
 . "$src/tests/exp_lib.sh"
 S="--set fluid.spacing=0.015"
-run none fluid_drop $S --unset effects.history --unset effects.boundary_stick
-for d in 50 150 250; do run d$d fluid_drop $S --set effects.history.d=$d; done
+run_d_series fluid_drop $S
 for t in none d50 d150 d250; do
     eval "reb_$t=$(metric $t fluid.com_rebound_height) sd_$t=$(metric $t fluid.solid_duration)"
     echo "$t: com_rebound_height $(eval echo \$reb_$t) m, solid_duration $(eval echo \$sd_$t) s"

@@ -6,8 +6,7 @@
 stf=$1; src=$2
 . "$src/tests/exp_lib.sh"
 S="--set fluid.spacing=0.015"
-run none fluid_slide $S --unset effects.history --unset effects.boundary_stick
-for d in 50 150 250; do run d$d fluid_slide $S --set effects.history.d=$d; done
+run_d_series fluid_slide $S
 for t in none d50 d150 d250; do
     eval "sd_$t=$(metric $t fluid.solid_duration)"
     echo "$t: solid_duration $(eval echo \$sd_$t) s"

@@ -13,6 +13,14 @@ run() {
         || { echo "$tag: stf run failed:" >&2; cat "$tmp/$tag.log" >&2; exit 1; }
 }
 
+# run_d_series SCENE [--set ...]: the paper's series, into none (no history, no boundary
+# stick) and d50, d150, d250 (history windows of that many steps).
+run_d_series() {
+    local scene=$1; shift
+    run none "$scene" "$@" --unset effects.history --unset effects.boundary_stick
+    for d in 50 150 250; do run "d$d" "$scene" "$@" --set effects.history.d=$d; done
+}
+
 # metric TAG KEY: prints the metric (a dotted path into the report JSON: fluid.solid_duration,
 # bodies.ball.final_position.2); null prints nan.
 metric() {
