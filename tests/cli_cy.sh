@@ -25,24 +25,24 @@ bad() { # NAME PATTERN FILE
     cmp -s out.h5 out.h5.ref || fail "$1: out.h5 was overwritten"
     [ ! -e out.xmf ] || fail "$1: out.xmf created"
 }
-sed 's/n: 1, eta: 0.01}/n: -1, eta: 0.01}/' "$SC/cy_falling_column.yaml" >neg_n.yaml
-line=$(grep -n -m1 'carreau_yasuda: {' neg_n.yaml | cut -d: -f1)
-bad neg_n "^neg_n.yaml:$line:[0-9]+: effects.carreau_yasuda.n: must be > 0" neg_n.yaml
-sed 's/viscosity_solver: implicit/viscosity_solver: sideways/' "$SC/cy_collapse_thickening.yaml" >bad_solver.yaml
-line=$(grep -n -m1 'viscosity_solver: sideways' bad_solver.yaml | cut -d: -f1)
-bad bad_solver "^bad_solver.yaml:$line:[0-9]+: effects.carreau_yasuda.viscosity_solver: expected one of: implicit, explicit" bad_solver.yaml
-sed 's/cfl: 0.5,/cfl: 1.5,/' "$SC/dam_break_3d.yaml" >bad_cfl.yaml
-line=$(grep -n -m1 'cfl: 1.5' bad_cfl.yaml | cut -d: -f1)
-bad bad_cfl "^bad_cfl.yaml:$line:[0-9]+: effects.carreau_yasuda.cfl: " bad_cfl.yaml
-sed 's/dt_max: 0.005,/dt_max: -1,/' "$SC/dam_break_3d.yaml" >bad_dtmax.yaml
-line=$(grep -n -m1 'dt_max: -1' bad_dtmax.yaml | cut -d: -f1)
-bad bad_dtmax "^bad_dtmax.yaml:$line:[0-9]+: effects.carreau_yasuda.dt_max: " bad_dtmax.yaml
-sed 's/  gravity: {g: \[0, 0, -9.81\]}/  gravity: {g: [0, 0, -9.81]}\n  pressure: {k: 1000}/' "$SC/cy_falling_column.yaml" >mixed.yaml
-line=$(grep -n -m1 '  pressure:' mixed.yaml | cut -d: -f1)
-bad mixed "^mixed.yaml:$line:3: effects.pressure: not part of fluid.model carreau_yasuda" mixed.yaml
-sed 's/  model: carreau_yasuda/  model: clavet_stf/' "$SC/cy_falling_column.yaml" >nomodel.yaml
-line=$(grep -n -m1 'carreau_yasuda: {' nomodel.yaml | cut -d: -f1)
-bad nomodel "^nomodel.yaml:$line:3: effects.carreau_yasuda: needs fluid.model: carreau_yasuda" nomodel.yaml
+# bad_edit NAME SCENE SED_EXPR LINE_REGEX REST: the scene edited by SED_EXPR into NAME.yaml
+# must be refused at the line matching LINE_REGEX, the message matching REST after it.
+bad_edit() {
+    sed "$3" "$SC/$2.yaml" >"$1.yaml"
+    local line
+    line=$(grep -n -m1 -e "$4" "$1.yaml" | cut -d: -f1)
+    bad "$1" "^$1.yaml:$line:$5" "$1.yaml"
+}
+bad_edit neg_n cy_falling_column 's/n: 1, eta: 0.01}/n: -1, eta: 0.01}/' 'carreau_yasuda: {' \
+    "[0-9]+: effects.carreau_yasuda.n: must be > 0"
+bad_edit bad_solver cy_collapse_thickening 's/viscosity_solver: implicit/viscosity_solver: sideways/' 'viscosity_solver: sideways' \
+    "[0-9]+: effects.carreau_yasuda.viscosity_solver: expected one of: implicit, explicit"
+bad_edit bad_cfl dam_break_3d 's/cfl: 0.5,/cfl: 1.5,/' 'cfl: 1.5' "[0-9]+: effects.carreau_yasuda.cfl: "
+bad_edit bad_dtmax dam_break_3d 's/dt_max: 0.005,/dt_max: -1,/' 'dt_max: -1' "[0-9]+: effects.carreau_yasuda.dt_max: "
+bad_edit mixed cy_falling_column 's/  gravity: {g: \[0, 0, -9.81\]}/  gravity: {g: [0, 0, -9.81]}\n  pressure: {k: 1000}/' '  pressure:' \
+    "3: effects.pressure: not part of fluid.model carreau_yasuda"
+bad_edit nomodel cy_falling_column 's/  model: carreau_yasuda/  model: clavet_stf/' 'carreau_yasuda: {' \
+    "3: effects.carreau_yasuda: needs fluid.model: carreau_yasuda"
 
 # ---- the pool: splash ordering at 0.2 m spacing (3943 particles; the scenes: 0.1 m, 32,751)
 # and 4 ms steps (CFL number below 0.1 at the splash's 7 m/s)
