@@ -79,7 +79,6 @@ typedef struct cy_state {
     double *wv;          /* 9n: sum over walls of v_wall (x) m grad W (row-major) */
     double *D;           /* 6n: strain rate xx yy zz xy xz yz, 1/s */
     double *nu;          /* n: kinematic viscosity of the step, m^2/s */
-    double *vel;         /* 3n: v** */
     double *b, *dv, *r, *p, *Ap; /* 3n each: viscosity solve */
     float *lap;          /* per pair (as pair): m (r.grad W)/(r^2 + 0.01 h^2), kg/m^5 */
     double wall_lap[WALL_BINS + 1]; /* the same summed over a wall's lattice, with Morris'
@@ -299,7 +298,7 @@ void cy_free(stf_fluid *f)
     cy_state *c = f->cy;
     if (!c) return;
     double *arrays[] = {c->rho, c->S,  c->kappa, c->ktot, c->rhostar, c->gw, c->qw, c->wv,
-                        c->D,   c->nu, c->vel,   c->b,    c->dv,      c->r,  c->p,  c->Ap};
+                        c->D,   c->nu, c->b,     c->dv,   c->r,       c->p,  c->Ap};
     for (size_t k = 0; k < sizeof arrays / sizeof *arrays; k++) free(arrays[k]);
     free(c->pair);
     free(c->off);
@@ -383,7 +382,7 @@ static int reserve(stf_fluid *f, int n)
     if (grow(&c->kr, N) || grow(&c->irho, N) || grow(&c->mu, N) || grow(&c->rho, N) ||
         grow(&c->S, N) || grow(&c->kappa, N) || grow(&c->ktot, N) ||
         grow(&c->rhostar, N) || grow(&c->gw, 3 * N) || grow(&c->qw, N) || grow(&c->wv, 9 * N) ||
-        grow(&c->D, 6 * N) || grow(&c->nu, N) || grow(&c->vel, 3 * N) || grow(&c->b, 3 * N) ||
+        grow(&c->D, 6 * N) || grow(&c->nu, N) || grow(&c->b, 3 * N) ||
         grow(&c->dv, 3 * N) || grow(&c->r, 3 * N) || grow(&c->p, 3 * N) || grow(&c->Ap, 3 * N) ||
         grow(&c->lw, N) || grow(&c->lwv, 3 * N))
         return -1;
@@ -1048,7 +1047,6 @@ static int cy_substep(stf_fluid *f, double dt)
        at the velocities */
     if (fluid_check(f, "carreau_yasuda pressure projection")) return -1;
     t0 = omp_get_wtime();
-    memcpy(c->vel, f->v, (size_t)n * 3 * sizeof *c->vel);
     viscosity_solve(f, dt);
     wall_reactions(f, dt);
     f->stage_seconds[STAGE_VISCOSITY] += omp_get_wtime() - t0;
