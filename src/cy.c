@@ -822,14 +822,6 @@ static void strain_one(const stf_fluid *f, const double *u, int i, int with_wall
     d[5] = (L[5] + L[7]) * inv;
 }
 
-/* T . g for a symmetric tensor T stored as xx yy zz xy xz yz. */
-static __attribute__((unused)) void sym_dot(const double *T, const double *g, double s, double out[3])
-{
-    out[0] += s * (T[0] * g[0] + T[3] * g[1] + T[4] * g[2]);
-    out[1] += s * (T[3] * g[0] + T[1] * g[1] + T[5] * g[2]);
-    out[2] += s * (T[4] * g[0] + T[5] * g[1] + T[2] * g[2]);
-}
-
 /* Viscous acceleration of the velocity field u: Morris et al.'s (1997) SPH Laplacian with
  * the pair viscosity (mu_i + mu_j), mu = rho nu,
  *   a_i = sum_j m (mu_i + mu_j) / (rho_i rho_j) (r_ij . grad W_ij) / (r^2 + 0.01 h^2) (u_i - u_j),
