@@ -77,7 +77,6 @@ typedef struct cy_state {
     double *gw;          /* 3n: sum over walls of m grad W (points into the walls) */
     double *qw;          /* n: sum over walls of v_wall . (m grad W) */
     double *wv;          /* 9n: sum over walls of v_wall (x) m grad W (row-major) */
-    double *D;           /* 6n: strain rate xx yy zz xy xz yz, 1/s */
     double *nu;          /* n: kinematic viscosity of the step, m^2/s */
     double *b, *dv, *r, *p, *Ap; /* 3n each: viscosity solve */
     float *lap;          /* per pair (as pair): m (r.grad W)/(r^2 + 0.01 h^2), kg/m^5 */
@@ -298,7 +297,7 @@ void cy_free(stf_fluid *f)
     cy_state *c = f->cy;
     if (!c) return;
     double *arrays[] = {c->rho, c->S,  c->kappa, c->ktot, c->rhostar, c->gw, c->qw, c->wv,
-                        c->D,   c->nu, c->b,     c->dv,   c->r,       c->p,  c->Ap};
+                        c->nu,  c->b,  c->dv,    c->r,    c->p,       c->Ap};
     for (size_t k = 0; k < sizeof arrays / sizeof *arrays; k++) free(arrays[k]);
     free(c->pair);
     free(c->off);
@@ -382,7 +381,7 @@ static int reserve(stf_fluid *f, int n)
     if (grow(&c->kr, N) || grow(&c->irho, N) || grow(&c->mu, N) || grow(&c->rho, N) ||
         grow(&c->S, N) || grow(&c->kappa, N) || grow(&c->ktot, N) ||
         grow(&c->rhostar, N) || grow(&c->gw, 3 * N) || grow(&c->qw, N) || grow(&c->wv, 9 * N) ||
-        grow(&c->D, 6 * N) || grow(&c->nu, N) || grow(&c->b, 3 * N) ||
+        grow(&c->nu, N) || grow(&c->b, 3 * N) ||
         grow(&c->dv, 3 * N) || grow(&c->r, 3 * N) || grow(&c->p, 3 * N) || grow(&c->Ap, 3 * N) ||
         grow(&c->lw, N) || grow(&c->lwv, 3 * N))
         return -1;
@@ -795,7 +794,7 @@ static void pressure_project(stf_fluid *f, double dt, double w)
 
 /* D_i = L_i + L_i^T, L_i = (1/rho_i) [sum_j m (u_j - u_i) (x) grad W_ij + (v_w - u_i) (x) G_w]
  * (Eq. 9, 22); the walls' velocity v_w only when with_walls (the affine part). */
-static void strain_one(const stf_fluid *f, const double *u, int i, int with_walls, double *D)
+static void strain_one(const stf_fluid *f, const double *u, int i, int with_walls, double d[6])
 {
     const cy_state *c = f->cy;
     double L[9] = {0}, m = f->mass;
@@ -813,7 +812,6 @@ static void strain_one(const stf_fluid *f, const double *u, int i, int with_wall
         for (int b = 0; b < 3; b++)
             L[3 * a + b] += (with_walls ? c->wv[9 * i + 3 * a + b] : 0) - ui[a] * G[b];
     double inv = 1.0 / c->rho[i];
-    double *d = D + 6 * i;
     d[0] = 2 * L[0] * inv;
     d[1] = 2 * L[4] * inv;
     d[2] = 2 * L[8] * inv;
@@ -883,8 +881,8 @@ static void viscosity_field(stf_fluid *f, const double *v)
     }
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) {
-        strain_one(f, v, i, 1, c->D);
-        const double *d = c->D + 6 * i;
+        double d[6];
+        strain_one(f, v, i, 1, d);
         double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] +
                     2 * (d[3] * d[3] + d[4] * d[4] + d[5] * d[5]);
         c->nu[i] = stf_cy_viscosity(&f->def.cy, sqrt(0.5 * dd));
