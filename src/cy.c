@@ -793,8 +793,8 @@ static void pressure_project(stf_fluid *f, double dt, double w)
 /* ------------------------------------------------------------------------ viscosity */
 
 /* D_i = L_i + L_i^T, L_i = (1/rho_i) [sum_j m (u_j - u_i) (x) grad W_ij + (v_w - u_i) (x) G_w]
- * (Eq. 9, 22); the walls' velocity v_w only when with_walls (the affine part). */
-static void strain_one(const stf_fluid *f, const double *u, int i, int with_walls, double d[6])
+ * (Eq. 9, 22). */
+static void strain_one(const stf_fluid *f, const double *u, int i, double d[6])
 {
     const cy_state *c = f->cy;
     double L[9] = {0}, m = f->mass;
@@ -810,8 +810,8 @@ static void strain_one(const stf_fluid *f, const double *u, int i, int with_wall
     const double *G = c->gw + 3 * i;
     for (int a = 0; a < 3; a++)
         for (int b = 0; b < 3; b++)
-            L[3 * a + b] += (with_walls ? c->wv[9 * i + 3 * a + b] : 0) - ui[a] * G[b];
-    double inv = 1.0 / c->rho[i];
+            L[3 * a + b] += c->wv[9 * i + 3 * a + b] - ui[a] * G[b];
+    double inv = c->irho[i];
     d[0] = 2 * L[0] * inv;
     d[1] = 2 * L[4] * inv;
     d[2] = 2 * L[8] * inv;
@@ -882,7 +882,7 @@ static void viscosity_field(stf_fluid *f, const double *v)
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) {
         double d[6];
-        strain_one(f, v, i, 1, d);
+        strain_one(f, v, i, d);
         double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] +
                     2 * (d[3] * d[3] + d[4] * d[4] + d[5] * d[5]);
         c->nu[i] = stf_cy_viscosity(&f->def.cy, sqrt(0.5 * dd));
