@@ -851,9 +851,10 @@ static void apply_system(stf_fluid *f, const double *u, double dt, double *out)
 {
     int n = f->n;
 #pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) viscous_one(f, u, i, 0, out);
-#pragma omp parallel for schedule(static)
-    for (int i = 0; i < 3 * n; i++) out[i] = u[i] - dt * out[i];
+    for (int i = 0; i < n; i++) {
+        viscous_one(f, u, i, 0, out);
+        for (int e = 3 * i; e < 3 * i + 3; e++) out[e] = u[e] - dt * out[e];
+    }
 }
 
 static double dot(const double *a, const double *b, int n)
