@@ -296,24 +296,11 @@ void cy_free(stf_fluid *f)
 {
     cy_state *c = f->cy;
     if (!c) return;
-    double *arrays[] = {c->rho, c->S,  c->kappa, c->ktot, c->rhostar, c->gw, c->qw, c->wv,
-                        c->nu,  c->b,  c->dv,    c->r,    c->p,       c->Ap};
+    void *arrays[] = {c->rho, c->S,   c->kappa,  c->ktot,   c->rhostar, c->gw,  c->qw,  c->wv,
+                      c->nu,  c->b,   c->dv,     c->r,      c->p,       c->Ap,  c->kr,  c->irho,
+                      c->mu,  c->lw,  c->lwv,    c->sx,     c->pair,    c->lap, c->off, c->cstart,
+                      c->cellof, c->sid, c->nbt, c->nbc,    c->hit};
     for (size_t k = 0; k < sizeof arrays / sizeof *arrays; k++) free(arrays[k]);
-    free(c->pair);
-    free(c->off);
-    free(c->cstart);
-    free(c->cellof);
-    free(c->sid);
-    free(c->sx);
-    free(c->nbt);
-    free(c->nbc);
-    free(c->kr);
-    free(c->irho);
-    free(c->mu);
-    free(c->lap);
-    free(c->lw);
-    free(c->lwv);
-    free(c->hit);
     free(c);
     f->cy = NULL;
 }
@@ -321,6 +308,14 @@ void cy_free(stf_fluid *f)
 static int grow(double **p, size_t count)
 {
     double *q = realloc(*p, (count ? count : 1) * sizeof *q);
+    if (!q) return -1;
+    *p = q;
+    return 0;
+}
+
+static int grow_i32(int32_t **p, size_t count)
+{
+    int32_t *q = realloc(*p, (count ? count : 1) * sizeof *q);
     if (!q) return -1;
     *p = q;
     return 0;
@@ -361,29 +356,15 @@ static int reserve(stf_fluid *f, int n)
     cy_state *c = f->cy;
     size_t N = (size_t)n;
     if (n <= c->cap) return 0;
-    int32_t *off = realloc(c->off, (N + 1) * sizeof *off);
-    if (!off) return -1;
-    c->off = off;
-    int32_t *i1 = realloc(c->cellof, N * sizeof *i1);
-    if (!i1) return -1;
-    c->cellof = i1;
-    int32_t *i2 = realloc(c->sid, N * sizeof *i2);
-    if (!i2) return -1;
-    c->sid = i2;
-    int32_t *i3 = realloc(c->nbc, N * sizeof *i3);
-    if (!i3) return -1;
-    c->nbc = i3;
     if (c->nbs == 0) c->nbs = 64;
-    int32_t *i4 = realloc(c->nbt, N * (size_t)c->nbs * sizeof *i4);
-    if (!i4) return -1;
-    c->nbt = i4;
-    if (grow(&c->sx, 3 * N)) return -1;
-    if (grow(&c->kr, N) || grow(&c->irho, N) || grow(&c->mu, N) || grow(&c->rho, N) ||
-        grow(&c->S, N) || grow(&c->kappa, N) || grow(&c->ktot, N) ||
+    if (grow_i32(&c->off, N + 1) || grow_i32(&c->cellof, N) || grow_i32(&c->sid, N) ||
+        grow_i32(&c->nbc, N) || grow_i32(&c->nbt, N * (size_t)c->nbs))
+        return -1;
+    if (grow(&c->sx, 3 * N) || grow(&c->kr, N) || grow(&c->irho, N) || grow(&c->mu, N) ||
+        grow(&c->rho, N) || grow(&c->S, N) || grow(&c->kappa, N) || grow(&c->ktot, N) ||
         grow(&c->rhostar, N) || grow(&c->gw, 3 * N) || grow(&c->qw, N) || grow(&c->wv, 9 * N) ||
-        grow(&c->nu, N) || grow(&c->b, 3 * N) ||
-        grow(&c->dv, 3 * N) || grow(&c->r, 3 * N) || grow(&c->p, 3 * N) || grow(&c->Ap, 3 * N) ||
-        grow(&c->lw, N) || grow(&c->lwv, 3 * N))
+        grow(&c->nu, N) || grow(&c->b, 3 * N) || grow(&c->dv, 3 * N) || grow(&c->r, 3 * N) ||
+        grow(&c->p, 3 * N) || grow(&c->Ap, 3 * N) || grow(&c->lw, N) || grow(&c->lwv, 3 * N))
         return -1;
     char *hit = realloc(c->hit, N);
     if (!hit) return -1;
@@ -607,9 +588,7 @@ static int cy_neighbours(stf_fluid *f)
         if (most < c->nbs) return 1;
         /* compressed regions: widen every list and redo (rare, deterministic) */
         int wide = most + most / 2 + 1;
-        int32_t *t = realloc(c->nbt, (size_t)c->cap * (size_t)wide * sizeof *t);
-        if (!t) return -1;
-        c->nbt = t;
+        if (grow_i32(&c->nbt, (size_t)c->cap * (size_t)wide)) return -1;
         c->nbs = wide;
     }
 }
