@@ -799,6 +799,13 @@ static void strain_one(const stf_fluid *f, const double *u, int i, double d[6])
     d[5] = (L[5] + L[7]) * inv;
 }
 
+/* Morris' pair factor (mu_i + mu_b) / (rho_i rho_b) with a wall's lattice particles b (at
+ * rho0, with the particle's own nu_i): the viscous force and its reaction on the collider. */
+static double wall_visc(const cy_state *c, int i)
+{
+    return c->nu[i] * (c->rho[i] + c->rho0) / (c->rho[i] * c->rho0);
+}
+
 /* Viscous acceleration of the velocity field u: Morris et al.'s (1997) SPH Laplacian with
  * the pair viscosity (mu_i + mu_j), mu = rho nu,
  *   a_i = sum_j m (mu_i + mu_j) / (rho_i rho_j) (r_ij . grad W_ij) / (r^2 + 0.01 h^2) (u_i - u_j),
@@ -820,7 +827,7 @@ static void viscous_one(const stf_fluid *f, const double *u, int i, int with_wal
         for (int e = 0; e < 3; e++) a[e] += w * (ui[e] - uj[e]);
     }
     for (int e = 0; e < 3; e++) a[e] *= c->irho[i];
-    double ww = c->nu[i] * (c->rho[i] + c->rho0) / (c->rho[i] * c->rho0);
+    double ww = wall_visc(c, i);
     for (int e = 0; e < 3; e++)
         out[3 * i + e] = a[e] + ww * (c->lw[i] * ui[e] - (with_walls ? c->lwv[3 * i + e] : 0));
 }
@@ -944,7 +951,7 @@ static void wall_reactions(stf_fluid *f, double dt)
             c->hit[i] = (char)wall_term(f, col, i, G, &rho, &lap, vb);
             if (!c->hit[i]) continue;
             double ki = c->ktot[i] / c->rho[i];
-            double ww = c->nu[i] * (c->rho[i] + c->rho0) / (c->rho[i] * c->rho0) * lap;
+            double ww = wall_visc(c, i) * lap;
             for (int a = 0; a < 3; a++)
                 c->dv[3 * i + a] = f->mass * dt * (ww * (f->v[3 * i + a] - vb[a]) - ki * G[a]);
         }
