@@ -135,6 +135,11 @@ static double kernel_dw(double r, double h)
     return -l * a * a;
 }
 
+static int is_periodic(const stf_fluid *f)
+{
+    return f->def.periodic[0] > 0 || f->def.periodic[1] > 0 || f->def.periodic[2] > 0;
+}
+
 /* x_i - x_j with the nearest periodic image; returns |r|. */
 static double pair_vec(const stf_fluid *f, int i, int j, double r[3])
 {
@@ -639,7 +644,7 @@ static void density_one(stf_fluid *f, int i)
     int cnt = c->dense ? c->nbc[i] : f->grid.count[i];
     cy_pair *pr = c->pair + c->off[i];
     float *lp = c->lap + c->off[i];
-    int periodic = f->def.periodic[0] > 0 || f->def.periodic[1] > 0 || f->def.periodic[2] > 0;
+    int periodic = is_periodic(f);
     const double *x = f->x, *xi = x + 3 * i;
     double R[3][CHUNK], W[CHUNK], S[CHUNK], L[CHUNK];
     for (int k0 = 0; k0 < cnt; k0 += CHUNK) {
@@ -992,9 +997,7 @@ static int cy_substep(stf_fluid *f, double dt)
         f->next_reorder = f->steps + f->reorder_interval;
     }
     if (reserve(f, n) != 0) goto oom;
-    int periodic = 0;
-    for (int a = 0; a < 3; a++) periodic |= f->def.periodic[a] > 0;
-    int dense = periodic ? 0 : cy_neighbours(f);
+    int dense = is_periodic(f) ? 0 : cy_neighbours(f);
     if (dense < 0) goto oom;
     c->dense = dense;
     if (!dense && grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
