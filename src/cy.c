@@ -77,9 +77,7 @@ typedef struct cy_state {
     double *gw;          /* 3n: sum over walls of m grad W (points into the walls) */
     double *qw;          /* n: sum over walls of v_wall . (m grad W) */
     double *wv;          /* 9n: sum over walls of v_wall (x) m grad W (row-major) */
-    double *D;           /* 6n: strain rate xx yy zz xy xz yz, 1/s */
     double *nu;          /* n: kinematic viscosity of the step, m^2/s */
-    double *vel;         /* 3n: v** */
     double *b, *dv, *r, *p, *Ap; /* 3n each: viscosity solve */
     float *lap;          /* per pair (as pair): m (r.grad W)/(r^2 + 0.01 h^2), kg/m^5 */
     double wall_lap[WALL_BINS + 1]; /* the same summed over a wall's lattice, with Morris'
@@ -135,6 +133,11 @@ static double kernel_dw(double r, double h)
     if (q <= 0.5) return l * q * (3 * q - 2);
     double a = 1 - q;
     return -l * a * a;
+}
+
+static int is_periodic(const stf_fluid *f)
+{
+    return f->def.periodic[0] > 0 || f->def.periodic[1] > 0 || f->def.periodic[2] > 0;
 }
 
 /* x_i - x_j with the nearest periodic image; returns |r|. */
@@ -298,24 +301,11 @@ void cy_free(stf_fluid *f)
 {
     cy_state *c = f->cy;
     if (!c) return;
-    double *arrays[] = {c->rho, c->S,  c->kappa, c->ktot, c->rhostar, c->gw, c->qw, c->wv,
-                        c->D,   c->nu, c->vel,   c->b,    c->dv,      c->r,  c->p,  c->Ap};
+    void *arrays[] = {c->rho, c->S,   c->kappa,  c->ktot,   c->rhostar, c->gw,  c->qw,  c->wv,
+                      c->nu,  c->b,   c->dv,     c->r,      c->p,       c->Ap,  c->kr,  c->irho,
+                      c->mu,  c->lw,  c->lwv,    c->sx,     c->pair,    c->lap, c->off, c->cstart,
+                      c->cellof, c->sid, c->nbt, c->nbc,    c->hit};
     for (size_t k = 0; k < sizeof arrays / sizeof *arrays; k++) free(arrays[k]);
-    free(c->pair);
-    free(c->off);
-    free(c->cstart);
-    free(c->cellof);
-    free(c->sid);
-    free(c->sx);
-    free(c->nbt);
-    free(c->nbc);
-    free(c->kr);
-    free(c->irho);
-    free(c->mu);
-    free(c->lap);
-    free(c->lw);
-    free(c->lwv);
-    free(c->hit);
     free(c);
     f->cy = NULL;
 }
@@ -323,6 +313,14 @@ void cy_free(stf_fluid *f)
 static int grow(double **p, size_t count)
 {
     double *q = realloc(*p, (count ? count : 1) * sizeof *q);
+    if (!q) return -1;
+    *p = q;
+    return 0;
+}
+
+static int grow_i32(int32_t **p, size_t count)
+{
+    int32_t *q = realloc(*p, (count ? count : 1) * sizeof *q);
     if (!q) return -1;
     *p = q;
     return 0;
@@ -363,29 +361,15 @@ static int reserve(stf_fluid *f, int n)
     cy_state *c = f->cy;
     size_t N = (size_t)n;
     if (n <= c->cap) return 0;
-    int32_t *off = realloc(c->off, (N + 1) * sizeof *off);
-    if (!off) return -1;
-    c->off = off;
-    int32_t *i1 = realloc(c->cellof, N * sizeof *i1);
-    if (!i1) return -1;
-    c->cellof = i1;
-    int32_t *i2 = realloc(c->sid, N * sizeof *i2);
-    if (!i2) return -1;
-    c->sid = i2;
-    int32_t *i3 = realloc(c->nbc, N * sizeof *i3);
-    if (!i3) return -1;
-    c->nbc = i3;
     if (c->nbs == 0) c->nbs = 64;
-    int32_t *i4 = realloc(c->nbt, N * (size_t)c->nbs * sizeof *i4);
-    if (!i4) return -1;
-    c->nbt = i4;
-    if (grow(&c->sx, 3 * N)) return -1;
-    if (grow(&c->kr, N) || grow(&c->irho, N) || grow(&c->mu, N) || grow(&c->rho, N) ||
-        grow(&c->S, N) || grow(&c->kappa, N) || grow(&c->ktot, N) ||
+    if (grow_i32(&c->off, N + 1) || grow_i32(&c->cellof, N) || grow_i32(&c->sid, N) ||
+        grow_i32(&c->nbc, N) || grow_i32(&c->nbt, N * (size_t)c->nbs))
+        return -1;
+    if (grow(&c->sx, 3 * N) || grow(&c->kr, N) || grow(&c->irho, N) || grow(&c->mu, N) ||
+        grow(&c->rho, N) || grow(&c->S, N) || grow(&c->kappa, N) || grow(&c->ktot, N) ||
         grow(&c->rhostar, N) || grow(&c->gw, 3 * N) || grow(&c->qw, N) || grow(&c->wv, 9 * N) ||
-        grow(&c->D, 6 * N) || grow(&c->nu, N) || grow(&c->vel, 3 * N) || grow(&c->b, 3 * N) ||
-        grow(&c->dv, 3 * N) || grow(&c->r, 3 * N) || grow(&c->p, 3 * N) || grow(&c->Ap, 3 * N) ||
-        grow(&c->lw, N) || grow(&c->lwv, 3 * N))
+        grow(&c->nu, N) || grow(&c->b, 3 * N) || grow(&c->dv, 3 * N) || grow(&c->r, 3 * N) ||
+        grow(&c->p, 3 * N) || grow(&c->Ap, 3 * N) || grow(&c->lw, N) || grow(&c->lwv, 3 * N))
         return -1;
     char *hit = realloc(c->hit, N);
     if (!hit) return -1;
@@ -609,9 +593,7 @@ static int cy_neighbours(stf_fluid *f)
         if (most < c->nbs) return 1;
         /* compressed regions: widen every list and redo (rare, deterministic) */
         int wide = most + most / 2 + 1;
-        int32_t *t = realloc(c->nbt, (size_t)c->cap * (size_t)wide * sizeof *t);
-        if (!t) return -1;
-        c->nbt = t;
+        if (grow_i32(&c->nbt, (size_t)c->cap * (size_t)wide)) return -1;
         c->nbs = wide;
     }
 }
@@ -662,7 +644,7 @@ static void density_one(stf_fluid *f, int i)
     int cnt = c->dense ? c->nbc[i] : f->grid.count[i];
     cy_pair *pr = c->pair + c->off[i];
     float *lp = c->lap + c->off[i];
-    int periodic = f->def.periodic[0] > 0 || f->def.periodic[1] > 0 || f->def.periodic[2] > 0;
+    int periodic = is_periodic(f);
     const double *x = f->x, *xi = x + 3 * i;
     double R[3][CHUNK], W[CHUNK], S[CHUNK], L[CHUNK];
     for (int k0 = 0; k0 < cnt; k0 += CHUNK) {
@@ -795,8 +777,8 @@ static void pressure_project(stf_fluid *f, double dt, double w)
 /* ------------------------------------------------------------------------ viscosity */
 
 /* D_i = L_i + L_i^T, L_i = (1/rho_i) [sum_j m (u_j - u_i) (x) grad W_ij + (v_w - u_i) (x) G_w]
- * (Eq. 9, 22); the walls' velocity v_w only when with_walls (the affine part). */
-static void strain_one(const stf_fluid *f, const double *u, int i, int with_walls, double *D)
+ * (Eq. 9, 22). */
+static void strain_one(const stf_fluid *f, const double *u, int i, double d[6])
 {
     const cy_state *c = f->cy;
     double L[9] = {0}, m = f->mass;
@@ -812,9 +794,8 @@ static void strain_one(const stf_fluid *f, const double *u, int i, int with_wall
     const double *G = c->gw + 3 * i;
     for (int a = 0; a < 3; a++)
         for (int b = 0; b < 3; b++)
-            L[3 * a + b] += (with_walls ? c->wv[9 * i + 3 * a + b] : 0) - ui[a] * G[b];
-    double inv = 1.0 / c->rho[i];
-    double *d = D + 6 * i;
+            L[3 * a + b] += c->wv[9 * i + 3 * a + b] - ui[a] * G[b];
+    double inv = c->irho[i];
     d[0] = 2 * L[0] * inv;
     d[1] = 2 * L[4] * inv;
     d[2] = 2 * L[8] * inv;
@@ -823,12 +804,11 @@ static void strain_one(const stf_fluid *f, const double *u, int i, int with_wall
     d[5] = (L[5] + L[7]) * inv;
 }
 
-/* T . g for a symmetric tensor T stored as xx yy zz xy xz yz. */
-static __attribute__((unused)) void sym_dot(const double *T, const double *g, double s, double out[3])
+/* Morris' pair factor (mu_i + mu_b) / (rho_i rho_b) with a wall's lattice particles b (at
+ * rho0, with the particle's own nu_i): the viscous force and its reaction on the collider. */
+static double wall_visc(const cy_state *c, int i)
 {
-    out[0] += s * (T[0] * g[0] + T[3] * g[1] + T[4] * g[2]);
-    out[1] += s * (T[3] * g[0] + T[1] * g[1] + T[5] * g[2]);
-    out[2] += s * (T[4] * g[0] + T[5] * g[1] + T[2] * g[2]);
+    return c->nu[i] * (c->rho[i] + c->rho0) / (c->rho[i] * c->rho0);
 }
 
 /* Viscous acceleration of the velocity field u: Morris et al.'s (1997) SPH Laplacian with
@@ -852,7 +832,7 @@ static void viscous_one(const stf_fluid *f, const double *u, int i, int with_wal
         for (int e = 0; e < 3; e++) a[e] += w * (ui[e] - uj[e]);
     }
     for (int e = 0; e < 3; e++) a[e] *= c->irho[i];
-    double ww = c->nu[i] * (c->rho[i] + c->rho0) / (c->rho[i] * c->rho0);
+    double ww = wall_visc(c, i);
     for (int e = 0; e < 3; e++)
         out[3 * i + e] = a[e] + ww * (c->lw[i] * ui[e] - (with_walls ? c->lwv[3 * i + e] : 0));
 }
@@ -862,9 +842,10 @@ static void apply_system(stf_fluid *f, const double *u, double dt, double *out)
 {
     int n = f->n;
 #pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) viscous_one(f, u, i, 0, out);
-#pragma omp parallel for schedule(static)
-    for (int i = 0; i < 3 * n; i++) out[i] = u[i] - dt * out[i];
+    for (int i = 0; i < n; i++) {
+        viscous_one(f, u, i, 0, out);
+        for (int e = 3 * i; e < 3 * i + 3; e++) out[e] = u[e] - dt * out[e];
+    }
 }
 
 static double dot(const double *a, const double *b, int n)
@@ -892,8 +873,8 @@ static void viscosity_field(stf_fluid *f, const double *v)
     }
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) {
-        strain_one(f, v, i, 1, c->D);
-        const double *d = c->D + 6 * i;
+        double d[6];
+        strain_one(f, v, i, d);
         double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] +
                     2 * (d[3] * d[3] + d[4] * d[4] + d[5] * d[5]);
         c->nu[i] = stf_cy_viscosity(&f->def.cy, sqrt(0.5 * dd));
@@ -975,7 +956,7 @@ static void wall_reactions(stf_fluid *f, double dt)
             c->hit[i] = (char)wall_term(f, col, i, G, &rho, &lap, vb);
             if (!c->hit[i]) continue;
             double ki = c->ktot[i] / c->rho[i];
-            double ww = c->nu[i] * (c->rho[i] + c->rho0) / (c->rho[i] * c->rho0) * lap;
+            double ww = wall_visc(c, i) * lap;
             for (int a = 0; a < 3; a++)
                 c->dv[3 * i + a] = f->mass * dt * (ww * (f->v[3 * i + a] - vb[a]) - ki * G[a]);
         }
@@ -1016,9 +997,7 @@ static int cy_substep(stf_fluid *f, double dt)
         f->next_reorder = f->steps + f->reorder_interval;
     }
     if (reserve(f, n) != 0) goto oom;
-    int periodic = 0;
-    for (int a = 0; a < 3; a++) periodic |= f->def.periodic[a] > 0;
-    int dense = periodic ? 0 : cy_neighbours(f);
+    int dense = is_periodic(f) ? 0 : cy_neighbours(f);
     if (dense < 0) goto oom;
     c->dense = dense;
     if (!dense && grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
@@ -1048,7 +1027,6 @@ static int cy_substep(stf_fluid *f, double dt)
        at the velocities */
     if (fluid_check(f, "carreau_yasuda pressure projection")) return -1;
     t0 = omp_get_wtime();
-    memcpy(c->vel, f->v, (size_t)n * 3 * sizeof *c->vel);
     viscosity_solve(f, dt);
     wall_reactions(f, dt);
     f->stage_seconds[STAGE_VISCOSITY] += omp_get_wtime() - t0;
