@@ -109,11 +109,11 @@ static double plastic_rest(double L, double r, double gamma, double alpha, doubl
 }
 
 /* Alg. 3 with Eq. 6 for one spring of particle i (to j at r = (rx, ry, rz), |r| = r, rest
- * length L): adds -D/2 to d, the history stiffness to *ksum and the gain to *csum; the
- * displacement is scaled by scale (1, or the saturation factor, see saturated_one). */
+ * length L): adds -D/2 to d, the displacement scaled by scale (the saturation factor, see
+ * saturated_one). */
 static inline void push_one(const stf_fluid *f, int i, int j, double rx, double ry, double rz,
                             double r, double L, double dt, double khist_scale, double scale,
-                            double d[3], double *ksum, double *csum)
+                            double d[3])
 {
     const double *D = f->hist.D;
     double h = f->h;
@@ -125,10 +125,8 @@ static inline void push_one(const stf_fluid *f, int i, int j, double rx, double 
         double kh = khist_scale * sqrt(ex * ex + ey * ey + ez * ez); /* Eq. 6 */
         kh = kh > f->def.k_onset ? kh - f->def.k_onset : 0.0; /* thickening starts at the onset */
         kij += kh;
-        *ksum += kh;
     }
     double c = dt * dt * kij * (1.0 - L / h); /* the spring's gain (saturation, below) */
-    *csum += c;
     double mag = 0.5 * (c * scale) * (L - r) / r;
     d[0] -= mag * rx;
     d[1] -= mag * ry;
@@ -293,7 +291,7 @@ static void saturated_one(stf_fluid *f, int i, double dt, double khist_scale, co
 {
     const stf_springs *s = &f->springs;
     const double *x = f->x;
-    double d[3] = {0, 0, 0}, ksum = 0, csum = 0;
+    double d[3] = {0, 0, 0};
     const int32_t *p = s->partner + (size_t)i * s->stride;
     const double *Ls = s->rest + (size_t)i * s->stride;
     for (int k = 0; k < s->count[i]; k++) {
@@ -302,7 +300,7 @@ static void saturated_one(stf_fluid *f, int i, double dt, double khist_scale, co
                rz = x[3 * j + 2] - x[3 * i + 2];
         double r = sqrt(rx * rx + ry * ry + rz * rz);
         push_one(f, i, j, rx, ry, rz, r, Ls[k], dt, khist_scale,
-                 scale[i] < scale[j] ? scale[i] : scale[j], d, &ksum, &csum);
+                 scale[i] < scale[j] ? scale[i] : scale[j], d);
     }
     for (int a = 0; a < 3; a++) f->dx[3 * i + a] = d[a];
 }

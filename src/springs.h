@@ -20,7 +20,7 @@ typedef struct stf_springs {
     int64_t *mark;    /* nthreads * n_alloc: which particle last saw a spring to j */
     int nthreads;
     double *gain;     /* n_alloc: sum of the spring gains dt^2 k (1 - L/h) of the particle,
-                         then its saturation factor (springs.c, displace_one) */
+                         then its saturation factor (springs.c, saturated_one) */
     long saturated_steps; /* steps in which the gains were scaled down (sum > 1 somewhere) */
     double max_gain;  /* largest sum of gains in the last step */
 } stf_springs;
