@@ -30,6 +30,9 @@ static void fill_weights(stf_history *h, int from)
         h->w[k] = stf_history_weight(h->q, 1, (long)k + 1);
 }
 
+/* Window mode, time blocks of HIST_TBLOCK samples (see derivative_blocked). */
+enum { HIST_TBLOCK = 16, HIST_CHUNK = 64 };
+
 int history_init(stf_history *h, double q, int window, int n)
 {
     memset(h, 0, sizeof *h);
@@ -37,7 +40,8 @@ int history_init(stf_history *h, double q, int window, int n)
     h->q = q;
     h->window = window;
     h->cap = window > 0 ? window + 1 : 64;
-    h->w = malloc((size_t)h->cap * sizeof *h->w);
+    /* a window's weights are followed by HIST_TBLOCK zeros (old_chunk reads past lag d) */
+    h->w = calloc((size_t)h->cap + (window > 0 ? HIST_TBLOCK : 0), sizeof *h->w);
     if (!h->w) return -1;
     fill_weights(h, 1);
     h->head = -1;
@@ -141,12 +145,10 @@ int history_push(stf_history *h, const double *v, int n)
  * old_j adds its terms in the order of the samples, oldest first, and a pass started in
  * the middle of a block (after a re-sort, a resize, a resume) adds the same terms in the same
  * order: the sums do not depend on when old was taken, nor on the threads. */
-enum { HIST_TBLOCK = 16, HIST_CHUNK = 64 };
-
 /* old_j (j >= j0) for the elements [lo, lo + cnt) of the block, into old (stride apart):
  * the HIST_TBLOCK x cnt sums stay in L1 while the samples stream past, each converted once.
- * wx holds the weights padded with zeros past lag d: a term past the window adds +0 to a sum
- * that is never -0, which leaves its bits as they were. */
+ * wx holds the weights padded with zeros past lag d (h->w, see history_init): a term past
+ * the window adds +0 to a sum that is never -0, which leaves its bits as they were. */
 static STF_VECTOR_CLONES void old_chunk(const stf_history *h, const double *wx, int j0, int lo,
                                         int cnt, double *old, size_t stride)
 {
@@ -175,24 +177,20 @@ static STF_VECTOR_CLONES void old_chunk(const stf_history *h, const double *wx, 
 /* old_j for j in [j0, HIST_TBLOCK) of the block starting at sample n0 (= newest - j0). */
 static int fill_old(stf_history *h, long n0, int j0, int n)
 {
-    int len = 3 * n, d = h->cap - 1;
+    int len = 3 * n;
     if (h->n_old < n) {
         free(h->old);
         h->old = malloc((size_t)HIST_TBLOCK * (size_t)h->n_alloc * 3 * sizeof *h->old);
         h->n_old = h->old ? h->n_alloc : 0;
         if (!h->old) return -1;
     }
-    double *wx = calloc((size_t)d + HIST_TBLOCK + 1, sizeof *wx);
-    if (!wx) return -1;
-    memcpy(wx, h->w, ((size_t)d + 1) * sizeof *wx);
     size_t stride = (size_t)h->n_old * 3;
     int nchunks = (len + HIST_CHUNK - 1) / HIST_CHUNK;
 #pragma omp parallel for schedule(static)
     for (int c = 0; c < nchunks; c++) {
         int lo = c * HIST_CHUNK, cnt = len - lo < HIST_CHUNK ? len - lo : HIST_CHUNK;
-        old_chunk(h, wx, j0, lo, cnt, h->old, stride);
+        old_chunk(h, h->w, j0, lo, cnt, h->old, stride);
     }
-    free(wx);
     h->old_n0 = n0;
     return 0;
 }

@@ -18,7 +18,8 @@ typedef struct stf_history {
     float *ring;  /* cap slots of 3 n_alloc velocities (slot-major) */
     long pushed;  /* samples pushed since the start */
     int head;     /* slot of the newest sample */
-    double *w;    /* cap interior weights by lag: w[0] = 1, w[k] = a_{n-k,n} for 0 < k < n */
+    double *w;    /* cap interior weights by lag: w[0] = 1, w[k] = a_{n-k,n} for 0 < k < n
+                     (window mode: then HIST_TBLOCK zeros, history.c) */
     double *D;    /* 3 n: sum_p a_{p,n} v_p (m/s), without the dt^(1-q)/Gamma(3-q) factor */
     /* window mode, time blocks (history.c, history_derivative): the parts of the next
      * HIST_TBLOCK sums that come from samples older than the block, taken in one pass over
