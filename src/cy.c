@@ -1052,19 +1052,6 @@ oom:
     return -1;
 }
 
-/* Largest particle speed, m/s (a max: the same for any thread count). */
-static double max_speed(const stf_fluid *f)
-{
-    double v2 = 0;
-#pragma omp parallel for schedule(static) reduction(max : v2)
-    for (int i = 0; i < f->n; i++) {
-        const double *v = f->v + 3 * i;
-        double s = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
-        v2 = s > v2 ? s : v2;
-    }
-    return sqrt(v2);
-}
-
 /* One coupled step of length dt: a single substep, or with cfl > 0 substeps of equal length
  * within dt whose count is set, at each substep's start, by the CFL condition
  * dt_sub <= min(dt_max, cfl h / v_max) on the remaining time (so the last one is not a
@@ -1082,7 +1069,7 @@ int cy_step(stf_fluid *f, double dt)
     st->pressure_iterations_total = 0;
     st->density_error_sum = st->density_error_max = 0;
     while (left > 1e-9 * dt) {
-        double sub = left, vmax = max_speed(f);
+        double sub = left, vmax = stf_fluid_max_speed(f);
         if (cfl > 0) {
             double most = f->def.cy.dt_max > 0 ? f->def.cy.dt_max : left;
             if (vmax * most > cfl * f->h) most = cfl * f->h / vmax;
