@@ -116,6 +116,14 @@ static int cmp_double(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
+/* The q-quantile of the m > 0 sorted values h, interpolated linearly between ranks. */
+static double quantile_sorted(const double *h, int m, double q)
+{
+    double at = q * (m - 1);
+    int lo = (int)floor(at), hi = lo + 1 < m ? lo + 1 : lo;
+    return h[lo] + (at - lo) * (h[hi] - h[lo]);
+}
+
 /* 95th percentile of the column heights above their median; the roughness (standard
  * deviation) in *rough. */
 static double finger_of(const double *x, int n, double spacing, double *rough)
@@ -128,9 +136,7 @@ static double finger_of(const double *x, int n, double spacing, double *rough)
     if (m > 0) {
         qsort(h, (size_t)m, sizeof *h, cmp_double);
         double median = m % 2 ? h[m / 2] : 0.5 * (h[m / 2 - 1] + h[m / 2]);
-        double at = 0.95 * (m - 1); /* linear interpolation between ranks */
-        int lo = (int)floor(at), hi = lo + 1 < m ? lo + 1 : lo;
-        finger = h[lo] + (at - lo) * (h[hi] - h[lo]) - median;
+        finger = quantile_sorted(h, m, 0.95) - median;
         for (int c = 0; c < m; c++) mean += h[c] / m;
         for (int c = 0; c < m; c++) var += (h[c] - mean) * (h[c] - mean) / m;
     }
@@ -167,9 +173,7 @@ static double top_percentile(const double *x, int n, double *tmp)
     if (n <= 0) return NAN;
     for (int i = 0; i < n; i++) tmp[i] = x[3 * i + 2];
     qsort(tmp, (size_t)n, sizeof *tmp, cmp_double);
-    double at = 0.99 * (n - 1);
-    int lo = (int)floor(at), hi = lo + 1 < n ? lo + 1 : lo;
-    return tmp[lo] + (at - lo) * (tmp[hi] - tmp[lo]);
+    return quantile_sorted(tmp, n, 0.99);
 }
 
 /* Union-find root with path halving. */
