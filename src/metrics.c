@@ -145,6 +145,24 @@ static double finger_of(const double *x, int n, double spacing, double *rough)
     return finger;
 }
 
+/* 1 when p is inside the container's inner box grown by one spacing. */
+static int in_container(const run_geometry *g, const double *p)
+{
+    int in = 1;
+    for (int a = 0; a < 3; a++) in &= p[a] >= g->lo[a] - g->spacing && p[a] <= g->hi[a] + g->spacing;
+    return in;
+}
+
+/* Swaps particle i of x with particle m. */
+static void swap_particles(double *x, int i, int m)
+{
+    for (int a = 0; a < 3; a++) {
+        double t = x[3 * m + a];
+        x[3 * m + a] = x[3 * i + a];
+        x[3 * i + a] = t;
+    }
+}
+
 /* Moves the particles inside the container (grown by one spacing; all particles without a
  * container) to the front of x; returns how many. The surface is the contained fluid's:
  * spilled particles lying outside are not columns of it. */
@@ -152,18 +170,8 @@ static int inside_first(double *x, int n, const run_geometry *g)
 {
     if (!g->has_container) return n;
     int m = 0;
-    for (int i = 0; i < n; i++) {
-        const double *p = x + 3 * i;
-        int in = 1;
-        for (int a = 0; a < 3; a++) in &= p[a] >= g->lo[a] - g->spacing && p[a] <= g->hi[a] + g->spacing;
-        if (!in) continue;
-        for (int a = 0; a < 3; a++) {
-            double t = x[3 * m + a];
-            x[3 * m + a] = x[3 * i + a];
-            x[3 * i + a] = t;
-        }
-        m++;
-    }
+    for (int i = 0; i < n; i++)
+        if (in_container(g, x + 3 * i)) swap_particles(x, i, m++);
     return m;
 }
 
@@ -266,13 +274,7 @@ static int bulk_first(double *x, int n, double spacing)
     int m = 0;
     for (int i = 0; i < n; i++) {
         int r = uf_root(parent, i);
-        if (r != largest && 10 * size[r] < n) continue;
-        for (int a = 0; a < 3; a++) {
-            double t = x[3 * m + a];
-            x[3 * m + a] = x[3 * i + a];
-            x[3 * i + a] = t;
-        }
-        m++;
+        if (r == largest || 10 * size[r] >= n) swap_particles(x, i, m++);
     }
     free(parent), free(size), free(k);
     return m;
@@ -331,12 +333,7 @@ static int fluid_metrics(const stf_h5r *r, const run_geometry *g, stf_metrics *m
         if (f == nf - 1) {
             m->particles = n;
             m->final_com_height = c[2];
-            for (int i = 0; g->has_container && i < n; i++) {
-                const double *p = x + 3 * i;
-                int in = 1;
-                for (int a = 0; a < 3; a++) in &= p[a] >= g->lo[a] - g->spacing && p[a] <= g->hi[a] + g->spacing;
-                m->escaped += !in;
-            }
+            for (int i = 0; g->has_container && i < n; i++) m->escaped += !in_container(g, x + 3 * i);
         }
         free(x);
         free(v);
