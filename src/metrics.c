@@ -295,7 +295,7 @@ static int fluid_metrics(const stf_h5r *r, const run_geometry *g, stf_metrics *m
             free(v);
             return -1;
         }
-        double com = 0, c[3] = {0, 0, 0}, vc[3] = {0, 0, 0};
+        double c[3] = {0, 0, 0}, vc[3] = {0, 0, 0}; /* centre of mass and its velocity */
         for (int i = 0; i < n; i++)
             for (int a = 0; a < 3; a++) c[a] += x[3 * i + a] / n, vc[a] += v[3 * i + a] / n;
         double rg = 0;
@@ -314,11 +314,10 @@ static int fluid_metrics(const stf_h5r *r, const run_geometry *g, stf_metrics *m
             if (!isfinite(s) || !isfinite(x[3 * i]) || !isfinite(x[3 * i + 1]) || !isfinite(x[3 * i + 2]))
                 m->nan = 1;
             else if (s > m->max_speed) m->max_speed = s;
-            com += x[3 * i + 2] / n;
         }
         if (n > 0) {
-            if (com < com_lowest) com_lowest = com;
-            if (com - com_lowest > m->com_rebound_height) m->com_rebound_height = com - com_lowest;
+            if (c[2] < com_lowest) com_lowest = c[2];
+            if (c[2] - com_lowest > m->com_rebound_height) m->com_rebound_height = c[2] - com_lowest;
             double *z = malloc((size_t)n * sizeof *z), top = z ? top_percentile(x, n, z) : NAN;
             free(z);
             if (top < top_lowest) top_lowest = top;
