@@ -432,13 +432,19 @@ static void put_num(sbuf *b, double v)
     else put(b, "null");
 }
 
+/* ", \"key\": " and the value. */
+static void put_field(sbuf *b, const char *key, double v)
+{
+    put(b, ", \"%s\": ", key);
+    put_num(b, v);
+}
+
 char *stf_metrics_json(const stf_metrics *m)
 {
     sbuf b = {0};
     put(&b, "{\"time_end\": ");
     put_num(&b, m->time_end);
-    put(&b, ", \"surface_height\": ");
-    put_num(&b, m->surface_height);
+    put_field(&b, "surface_height", m->surface_height);
     put(&b, ",\n \"bodies\": {");
     for (int k = 0; k < m->nbodies; k++) {
         const stf_body_metrics *o = &m->bodies[k];
@@ -446,16 +452,11 @@ char *stf_metrics_json(const stf_metrics *m)
         put_num(&b, o->first_contact_time);
         put(&b, ", \"bounces\": %d, \"max_rebound_height\": ", o->bounces);
         put_num(&b, o->max_rebound_height);
-        put(&b, ", \"roll_distance\": ");
-        put_num(&b, o->roll_distance);
-        put(&b, ", \"sink_time\": ");
-        put_num(&b, o->sink_time);
-        put(&b, ", \"float_duration\": ");
-        put_num(&b, o->float_duration);
-        put(&b, ", \"rest_time\": ");
-        put_num(&b, o->rest_time);
-        put(&b, ", \"rest_duration\": ");
-        put_num(&b, o->rest_duration);
+        put_field(&b, "roll_distance", o->roll_distance);
+        put_field(&b, "sink_time", o->sink_time);
+        put_field(&b, "float_duration", o->float_duration);
+        put_field(&b, "rest_time", o->rest_time);
+        put_field(&b, "rest_duration", o->rest_duration);
         put(&b, ", \"final_position\": [%.9g, %.9g, %.9g]}", o->final_position[0],
             o->final_position[1], o->final_position[2]);
     }
@@ -464,18 +465,12 @@ char *stf_metrics_json(const stf_metrics *m)
     put_num(&b, m->max_speed);
     put(&b, ", \"nan\": %s, \"com_rebound_height\": ", m->nan ? "true" : "false");
     put_num(&b, m->com_rebound_height);
-    put(&b, ", \"finger_height\": ");
-    put_num(&b, m->finger_height);
-    put(&b, ", \"surface_roughness\": ");
-    put_num(&b, m->surface_roughness);
-    put(&b, ", \"final_com_height\": ");
-    put_num(&b, m->final_com_height);
-    put(&b, ", \"impact_time\": ");
-    put_num(&b, m->impact_time);
-    put(&b, ", \"solid_duration\": ");
-    put_num(&b, m->solid_duration);
-    put(&b, ", \"splash_height\": ");
-    put_num(&b, m->splash_height);
+    put_field(&b, "finger_height", m->finger_height);
+    put_field(&b, "surface_roughness", m->surface_roughness);
+    put_field(&b, "final_com_height", m->final_com_height);
+    put_field(&b, "impact_time", m->impact_time);
+    put_field(&b, "solid_duration", m->solid_duration);
+    put_field(&b, "splash_height", m->splash_height);
     put(&b, "}}\n");
     return b.s;
 }
