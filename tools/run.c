@@ -476,7 +476,7 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
  * was written by, or the scene text stored in the file) and reads the checkpoint. Returns
  * -1 to go on, or the exit code (0 for a run that already finished) with a message. The file
  * is not changed here. */
-static int prepare_resume(const run_args *a, stf_scene **sc, char **own, const char **out,
+static int prepare_resume(run_args *a, stf_scene **sc, char **own, const char **out,
                           stf_state *st)
 {
     char err[2048];
@@ -526,7 +526,7 @@ static int prepare_resume(const run_args *a, stf_scene **sc, char **own, const c
     free(path);
     stf_h5r_close(r);
     if (rc >= 0) return rc;
-    ((run_args *)a)->duration = duration;
+    a->duration = duration;
     int got = stf_h5_read_checkpoint(*out, st, err, sizeof err);
     if (got == 1)
         fprintf(stderr, "stf: %s has no checkpoint (the run was stopped before its first one); "
