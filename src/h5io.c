@@ -90,20 +90,28 @@ const char *stf_h5_last_error(const stf_h5 *h) { return h ? h->err : "no file"; 
  * with "addr overflow" (3 of 80 kills during a frame every step, measured). With eviction
  * off, metadata reaches the disk only in H5Fflush, which we call after each complete frame
  * or body row; the cache is emptied by reopening the file when it grows (flush_and_bound). */
-static hid_t no_eviction_fapl(void)
+/* A new file access property list, and HDF5's default metadata cache configuration in
+ * *mdc; -1 on failure. */
+static hid_t default_mdc_fapl(H5AC_cache_config_t *mdc)
 {
     hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
+    memset(mdc, 0, sizeof *mdc);
+    mdc->version = H5AC__CURR_CACHE_CONFIG_VERSION;
+    if (fapl >= 0 && H5Pget_mdc_config(fapl, mdc) >= 0) return fapl;
+    close_id(fapl);
+    return -1;
+}
+
+static hid_t no_eviction_fapl(void)
+{
     H5AC_cache_config_t mdc;
-    memset(&mdc, 0, sizeof mdc);
-    mdc.version = H5AC__CURR_CACHE_CONFIG_VERSION;
-    if (fapl < 0 || H5Pget_mdc_config(fapl, &mdc) < 0) goto fail;
+    hid_t fapl = default_mdc_fapl(&mdc);
+    if (fapl < 0) return -1;
     mdc.evictions_enabled = 0;
     mdc.incr_mode = H5C_incr__off;
     mdc.flash_incr_mode = H5C_flash_incr__off;
     mdc.decr_mode = H5C_decr__off;
-    if (H5Pset_mdc_config(fapl, &mdc) < 0) goto fail;
-    return fapl;
-fail:
+    if (H5Pset_mdc_config(fapl, &mdc) >= 0) return fapl;
     close_id(fapl);
     return -1;
 }
@@ -130,13 +138,9 @@ static int flush_and_bound(stf_h5 *h)
 int stf_h5_flush_for_reading(stf_h5 *h)
 {
     if (!h || H5Fflush(h->file, H5F_SCOPE_GLOBAL) < 0) return -1;
-    hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
     H5AC_cache_config_t mdc;
-    memset(&mdc, 0, sizeof mdc);
-    mdc.version = H5AC__CURR_CACHE_CONFIG_VERSION;
-    int rc = fapl >= 0 && H5Pget_mdc_config(fapl, &mdc) >= 0 && /* the defaults */
-                     H5Fset_mdc_config(h->file, &mdc) >= 0
-                 ? 0 : -1;
+    hid_t fapl = default_mdc_fapl(&mdc);
+    int rc = fapl >= 0 && H5Fset_mdc_config(h->file, &mdc) >= 0 ? 0 : -1;
     close_id(fapl);
     if (rc) snprintf(h->err, sizeof h->err, "cannot reset the metadata cache");
     return rc;

@@ -116,6 +116,14 @@ static int cmp_double(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
+/* The q-quantile of the m > 0 sorted values h, interpolated linearly between ranks. */
+static double quantile_sorted(const double *h, int m, double q)
+{
+    double at = q * (m - 1);
+    int lo = (int)floor(at), hi = lo + 1 < m ? lo + 1 : lo;
+    return h[lo] + (at - lo) * (h[hi] - h[lo]);
+}
+
 /* 95th percentile of the column heights above their median; the roughness (standard
  * deviation) in *rough. */
 static double finger_of(const double *x, int n, double spacing, double *rough)
@@ -128,15 +136,31 @@ static double finger_of(const double *x, int n, double spacing, double *rough)
     if (m > 0) {
         qsort(h, (size_t)m, sizeof *h, cmp_double);
         double median = m % 2 ? h[m / 2] : 0.5 * (h[m / 2 - 1] + h[m / 2]);
-        double at = 0.95 * (m - 1); /* linear interpolation between ranks */
-        int lo = (int)floor(at), hi = lo + 1 < m ? lo + 1 : lo;
-        finger = h[lo] + (at - lo) * (h[hi] - h[lo]) - median;
+        finger = quantile_sorted(h, m, 0.95) - median;
         for (int c = 0; c < m; c++) mean += h[c] / m;
         for (int c = 0; c < m; c++) var += (h[c] - mean) * (h[c] - mean) / m;
     }
     *rough = sqrt(var);
     free(h);
     return finger;
+}
+
+/* 1 when p is inside the container's inner box grown by one spacing. */
+static int in_container(const run_geometry *g, const double *p)
+{
+    int in = 1;
+    for (int a = 0; a < 3; a++) in &= p[a] >= g->lo[a] - g->spacing && p[a] <= g->hi[a] + g->spacing;
+    return in;
+}
+
+/* Swaps particle i of x with particle m. */
+static void swap_particles(double *x, int i, int m)
+{
+    for (int a = 0; a < 3; a++) {
+        double t = x[3 * m + a];
+        x[3 * m + a] = x[3 * i + a];
+        x[3 * i + a] = t;
+    }
 }
 
 /* Moves the particles inside the container (grown by one spacing; all particles without a
@@ -146,18 +170,8 @@ static int inside_first(double *x, int n, const run_geometry *g)
 {
     if (!g->has_container) return n;
     int m = 0;
-    for (int i = 0; i < n; i++) {
-        const double *p = x + 3 * i;
-        int in = 1;
-        for (int a = 0; a < 3; a++) in &= p[a] >= g->lo[a] - g->spacing && p[a] <= g->hi[a] + g->spacing;
-        if (!in) continue;
-        for (int a = 0; a < 3; a++) {
-            double t = x[3 * m + a];
-            x[3 * m + a] = x[3 * i + a];
-            x[3 * i + a] = t;
-        }
-        m++;
-    }
+    for (int i = 0; i < n; i++)
+        if (in_container(g, x + 3 * i)) swap_particles(x, i, m++);
     return m;
 }
 
@@ -167,9 +181,7 @@ static double top_percentile(const double *x, int n, double *tmp)
     if (n <= 0) return NAN;
     for (int i = 0; i < n; i++) tmp[i] = x[3 * i + 2];
     qsort(tmp, (size_t)n, sizeof *tmp, cmp_double);
-    double at = 0.99 * (n - 1);
-    int lo = (int)floor(at), hi = lo + 1 < n ? lo + 1 : lo;
-    return tmp[lo] + (at - lo) * (tmp[hi] - tmp[lo]);
+    return quantile_sorted(tmp, n, 0.99);
 }
 
 /* Union-find root with path halving. */
@@ -262,13 +274,7 @@ static int bulk_first(double *x, int n, double spacing)
     int m = 0;
     for (int i = 0; i < n; i++) {
         int r = uf_root(parent, i);
-        if (r != largest && 10 * size[r] < n) continue;
-        for (int a = 0; a < 3; a++) {
-            double t = x[3 * m + a];
-            x[3 * m + a] = x[3 * i + a];
-            x[3 * i + a] = t;
-        }
-        m++;
+        if (r == largest || 10 * size[r] >= n) swap_particles(x, i, m++);
     }
     free(parent), free(size), free(k);
     return m;
@@ -289,7 +295,7 @@ static int fluid_metrics(const stf_h5r *r, const run_geometry *g, stf_metrics *m
             free(v);
             return -1;
         }
-        double com = 0, c[3] = {0, 0, 0}, vc[3] = {0, 0, 0};
+        double c[3] = {0, 0, 0}, vc[3] = {0, 0, 0}; /* centre of mass and its velocity */
         for (int i = 0; i < n; i++)
             for (int a = 0; a < 3; a++) c[a] += x[3 * i + a] / n, vc[a] += v[3 * i + a] / n;
         double rg = 0;
@@ -308,11 +314,10 @@ static int fluid_metrics(const stf_h5r *r, const run_geometry *g, stf_metrics *m
             if (!isfinite(s) || !isfinite(x[3 * i]) || !isfinite(x[3 * i + 1]) || !isfinite(x[3 * i + 2]))
                 m->nan = 1;
             else if (s > m->max_speed) m->max_speed = s;
-            com += x[3 * i + 2] / n;
         }
         if (n > 0) {
-            if (com < com_lowest) com_lowest = com;
-            if (com - com_lowest > m->com_rebound_height) m->com_rebound_height = com - com_lowest;
+            if (c[2] < com_lowest) com_lowest = c[2];
+            if (c[2] - com_lowest > m->com_rebound_height) m->com_rebound_height = c[2] - com_lowest;
             double *z = malloc((size_t)n * sizeof *z), top = z ? top_percentile(x, n, z) : NAN;
             free(z);
             if (top < top_lowest) top_lowest = top;
@@ -327,12 +332,7 @@ static int fluid_metrics(const stf_h5r *r, const run_geometry *g, stf_metrics *m
         if (f == nf - 1) {
             m->particles = n;
             m->final_com_height = c[2];
-            for (int i = 0; g->has_container && i < n; i++) {
-                const double *p = x + 3 * i;
-                int in = 1;
-                for (int a = 0; a < 3; a++) in &= p[a] >= g->lo[a] - g->spacing && p[a] <= g->hi[a] + g->spacing;
-                m->escaped += !in;
-            }
+            for (int i = 0; g->has_container && i < n; i++) m->escaped += !in_container(g, x + 3 * i);
         }
         free(x);
         free(v);
@@ -432,13 +432,19 @@ static void put_num(sbuf *b, double v)
     else put(b, "null");
 }
 
+/* ", \"key\": " and the value. */
+static void put_field(sbuf *b, const char *key, double v)
+{
+    put(b, ", \"%s\": ", key);
+    put_num(b, v);
+}
+
 char *stf_metrics_json(const stf_metrics *m)
 {
     sbuf b = {0};
     put(&b, "{\"time_end\": ");
     put_num(&b, m->time_end);
-    put(&b, ", \"surface_height\": ");
-    put_num(&b, m->surface_height);
+    put_field(&b, "surface_height", m->surface_height);
     put(&b, ",\n \"bodies\": {");
     for (int k = 0; k < m->nbodies; k++) {
         const stf_body_metrics *o = &m->bodies[k];
@@ -446,16 +452,11 @@ char *stf_metrics_json(const stf_metrics *m)
         put_num(&b, o->first_contact_time);
         put(&b, ", \"bounces\": %d, \"max_rebound_height\": ", o->bounces);
         put_num(&b, o->max_rebound_height);
-        put(&b, ", \"roll_distance\": ");
-        put_num(&b, o->roll_distance);
-        put(&b, ", \"sink_time\": ");
-        put_num(&b, o->sink_time);
-        put(&b, ", \"float_duration\": ");
-        put_num(&b, o->float_duration);
-        put(&b, ", \"rest_time\": ");
-        put_num(&b, o->rest_time);
-        put(&b, ", \"rest_duration\": ");
-        put_num(&b, o->rest_duration);
+        put_field(&b, "roll_distance", o->roll_distance);
+        put_field(&b, "sink_time", o->sink_time);
+        put_field(&b, "float_duration", o->float_duration);
+        put_field(&b, "rest_time", o->rest_time);
+        put_field(&b, "rest_duration", o->rest_duration);
         put(&b, ", \"final_position\": [%.9g, %.9g, %.9g]}", o->final_position[0],
             o->final_position[1], o->final_position[2]);
     }
@@ -464,18 +465,12 @@ char *stf_metrics_json(const stf_metrics *m)
     put_num(&b, m->max_speed);
     put(&b, ", \"nan\": %s, \"com_rebound_height\": ", m->nan ? "true" : "false");
     put_num(&b, m->com_rebound_height);
-    put(&b, ", \"finger_height\": ");
-    put_num(&b, m->finger_height);
-    put(&b, ", \"surface_roughness\": ");
-    put_num(&b, m->surface_roughness);
-    put(&b, ", \"final_com_height\": ");
-    put_num(&b, m->final_com_height);
-    put(&b, ", \"impact_time\": ");
-    put_num(&b, m->impact_time);
-    put(&b, ", \"solid_duration\": ");
-    put_num(&b, m->solid_duration);
-    put(&b, ", \"splash_height\": ");
-    put_num(&b, m->splash_height);
+    put_field(&b, "finger_height", m->finger_height);
+    put_field(&b, "surface_roughness", m->surface_roughness);
+    put_field(&b, "final_com_height", m->final_com_height);
+    put_field(&b, "impact_time", m->impact_time);
+    put_field(&b, "solid_duration", m->solid_duration);
+    put_field(&b, "splash_height", m->splash_height);
     put(&b, "}}\n");
     return b.s;
 }

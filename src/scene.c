@@ -403,13 +403,6 @@ static int normalise(double *v, int n)
 
 /* ----------------------------------------------------------------------- the sections */
 
-static int has_key(const mapv *m, const char *key)
-{
-    struct fy_node *k;
-    lookup(m, key, &k);
-    return k != NULL;
-}
-
 static int parse_blocks(loader *L, const mapv *fluid)
 {
     static const char *const keys[] = {"min", "max", "center", "radius", "velocity", NULL};
@@ -432,15 +425,15 @@ static int parse_blocks(loader *L, const mapv *fluid)
         int r = get_num(L, &bm, "radius", R_POS, &b->radius);
         if (r < 0) return SCENE_BAD;
         if (r > 0) { /* a ball: centre and radius; lo, hi its bounding box */
-            if (has_key(&bm, "min")) return fail_key(L, &bm, "min", "not allowed with radius (a ball)");
-            if (has_key(&bm, "max")) return fail_key(L, &bm, "max", "not allowed with radius (a ball)");
+            if (has(&bm, "min")) return fail_key(L, &bm, "min", "not allowed with radius (a ball)");
+            if (has(&bm, "max")) return fail_key(L, &bm, "max", "not allowed with radius (a ball)");
             if (need_vec(L, &bm, "center", R_ANY, 3, b->center)) return SCENE_BAD;
             for (int c = 0; c < 3; c++) {
                 b->lo[c] = b->center[c] - b->radius;
                 b->hi[c] = b->center[c] + b->radius;
             }
         } else {
-            if (has_key(&bm, "center"))
+            if (has(&bm, "center"))
                 return fail_key(L, &bm, "center", "only allowed with radius (a ball)");
             if (need_vec(L, &bm, "min", R_ANY, 3, b->lo) || need_vec(L, &bm, "max", R_ANY, 3, b->hi))
                 return SCENE_BAD;

@@ -314,6 +314,7 @@ static int start_run(const stf_scene *sc, const char *out, const stf_state *resu
         return 2;
     }
     int n = stf_fluid_count((*sim)->fluid);
+    long steps = lround(duration / sc->dt);
     *b = (frame_buf){malloc((size_t)n * 3 * sizeof(double) + 1), malloc((size_t)n * 3 * sizeof(double) + 1),
                      malloc((size_t)n * sizeof(float) + 1), malloc((size_t)n * sizeof(int32_t) + 1)};
     if (!b->x || !b->v || !b->k || !b->id) {
@@ -326,11 +327,11 @@ static int start_run(const stf_scene *sc, const char *out, const stf_state *resu
             fprintf(stderr, "stf: %s: %s (not resuming; the file is unchanged)\n", out, err);
             return 2;
         }
-        if (p->steps != lround(duration / sc->dt) || p->frames < 1 || p->body_rows < 0 ||
+        if (p->steps != steps || p->frames < 1 || p->body_rows < 0 ||
             p->frames > 0x7fffffff) {
             fprintf(stderr, "stf: %s: the checkpoint is for a run of %ld steps, not %ld (not "
                             "resuming; the file is unchanged)\n",
-                    out, (long)p->steps, lround(duration / sc->dt));
+                    out, (long)p->steps, steps);
             return 2;
         }
         if (stf_h5_open_resume(out, (int)p->frames, (long)p->body_rows, h, err, sizeof err) != 0) {
@@ -343,7 +344,7 @@ static int start_run(const stf_scene *sc, const char *out, const stf_state *resu
         fprintf(stderr, "stf: cannot write the output: %s\n", err);
         return 2;
     }
-    p->steps = lround(duration / sc->dt);
+    p->steps = steps;
     p->frames = 1;
     p->body_rows = 1;
     if (write_header(*h, *sim, duration) != 0 || write_frame(*h, *sim, b) != 0 ||
@@ -475,7 +476,7 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
  * was written by, or the scene text stored in the file) and reads the checkpoint. Returns
  * -1 to go on, or the exit code (0 for a run that already finished) with a message. The file
  * is not changed here. */
-static int prepare_resume(const run_args *a, stf_scene **sc, char **own, const char **out,
+static int prepare_resume(run_args *a, stf_scene **sc, char **own, const char **out,
                           stf_state *st)
 {
     char err[2048];
@@ -525,7 +526,7 @@ static int prepare_resume(const run_args *a, stf_scene **sc, char **own, const c
     free(path);
     stf_h5r_close(r);
     if (rc >= 0) return rc;
-    ((run_args *)a)->duration = duration;
+    a->duration = duration;
     int got = stf_h5_read_checkpoint(*out, st, err, sizeof err);
     if (got == 1)
         fprintf(stderr, "stf: %s has no checkpoint (the run was stopped before its first one); "

@@ -395,8 +395,9 @@ static int write_plan(const sweep_args *a, const sweep_plan *p)
 
 /* ---------------------------------------------------------------- the runs */
 
-/* exit_status of a finished run file, or -1 if the file is missing, unreadable or unfinished. */
-static int file_status(const char *path)
+/* exit_status of a finished run file, or -1 if the file is missing, unreadable or unfinished;
+ * its wall_seconds in *wall (unless NULL; unchanged if absent). */
+static int file_status(const char *path, double *wall)
 {
     if (access(path, R_OK) != 0) return -1;
     char err[512];
@@ -404,6 +405,7 @@ static int file_status(const char *path)
     if (stf_h5r_open(path, &r, err, sizeof err) != 0) return -1;
     double st;
     int rc = stf_h5r_attr_double(r, "exit_status", &st);
+    if (wall) stf_h5r_attr_double(r, "wall_seconds", wall);
     stf_h5r_close(r);
     return rc == 0 ? (int)st : -1;
 }
@@ -418,7 +420,7 @@ static int done(int status) { return status == 0 || status == 3; }
 static int resume_if_stopped(const sweep_args *a, const sweep_plan *p, int i, const char *out,
                              char **argv, int n)
 {
-    if (access(out, R_OK) != 0 || done(file_status(out))) return n;
+    if (access(out, R_OK) != 0 || done(file_status(out, NULL))) return n;
     stf_scene *sc = NULL;
     stf_h5r *r = NULL;
     char err[512], *text = NULL;
@@ -561,7 +563,8 @@ static void collect(const sweep_args *a, sweep_plan *p)
         sweep_run *r = &p->runs[i];
         char path[4096], err[1024];
         snprintf(path, sizeof path, "%s/run_%04d.h5", a->dir, i);
-        r->status = file_status(path);
+        double wall = NAN;
+        r->status = file_status(path, &wall);
         r->wall = NAN;
         if (!done(r->status)) continue; /* a partial run's metrics would mislead: rerun it */
         if (stf_metrics_compute(path, &r->m, err, sizeof err) != 0) {
@@ -570,11 +573,7 @@ static void collect(const sweep_args *a, sweep_plan *p)
             continue;
         }
         r->have_metrics = 1;
-        stf_h5r *h;
-        if (stf_h5r_open(path, &h, err, sizeof err) == 0) {
-            stf_h5r_attr_double(h, "wall_seconds", &r->wall);
-            stf_h5r_close(h);
-        }
+        r->wall = wall;
         stf_scene *sc;
         r->failed = -1;
         if (check_run(a, p, i, &sc) == 0) {
@@ -763,7 +762,7 @@ int cli_sweep(int argc, char **argv)
     for (int i = rank; i < p.nruns; i += size) {
         char path[4096];
         snprintf(path, sizeof path, "%s/run_%04d.h5", a.dir, i);
-        if (done(file_status(path))) continue;
+        if (done(file_status(path, NULL))) continue;
         todo[ntodo++] = i;
     }
     if (!a.quiet && size == 1)
