@@ -4,7 +4,7 @@
 # out.h5 keeps its content and no out.xmf appears.
 #
 # usage: bash cli_bad_input.sh STF_BINARY PROJECT_DIR   (run in the build's tests directory)
-. "$(dirname "$0")/cli_lib.sh" cli_bad_input "$@"
+. "$(dirname "$0")/lib_cli.sh" cli_bad_input "$@"
 
 BASE="$PROJ/tests/scenes/small_drop.yaml"
 

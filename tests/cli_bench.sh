@@ -10,7 +10,7 @@
 #  - table1 refuses a missing scene with exit 2, and an unknown benchmark is exit 2;
 #  - history.terms is refused (exit 2, key named) without mode soe and outside [1, 64].
 # usage: bash cli_bench.sh STF_BINARY PROJECT_DIR
-. "$(dirname "$0")/cli_lib.sh" cli_bench "$@"
+. "$(dirname "$0")/lib_cli.sh" cli_bench "$@"
 SCENE="$PROJ/scenes/bowling_ball.yaml"
 export OMP_NUM_THREADS=1
 

@@ -9,7 +9,7 @@
 #   - every frame carries the solver statistics (pressure iterations >= 2, density error < eta).
 #
 # usage: bash cli_cy.sh STF_BINARY PROJECT_DIR   (run in the build's tests directory)
-. "$(dirname "$0")/cli_lib.sh" cli_cy "$@"
+. "$(dirname "$0")/lib_cli.sh" cli_cy "$@"
 
 SC="$PROJ/scenes"
 export OMP_NUM_THREADS=1

@@ -10,7 +10,7 @@
 # low, README "The Carreau-Yasuda model".)
 #
 # usage: bash cli_cy_periodic.sh STF_BINARY PROJECT_DIR   (run in the build's tests directory)
-. "$(dirname "$0")/cli_lib.sh" cli_cy_periodic "$@"
+. "$(dirname "$0")/lib_cli.sh" cli_cy_periodic "$@"
 
 SCENE="$PROJ/scenes/cy_film_flow.yaml"
 CHECK="$PROJ/tests/cy_film_profile.py"

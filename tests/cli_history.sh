@@ -5,7 +5,7 @@
 # input exits 2 (with FILE:LINE for a bad profile).
 #
 # usage: bash cli_history.sh STF_BINARY PROJECT_DIR   (run in the build's tests directory)
-. "$(dirname "$0")/cli_lib.sh" cli_history "$@"
+. "$(dirname "$0")/lib_cli.sh" cli_history "$@"
 
 PY=/usr/bin/python3
 : "$PROJ"

@@ -3,7 +3,7 @@
 # image, and an unreadable file exits 2.
 #
 # usage: bash cli_pictures.sh STF_BINARY PROJECT_DIR   (run in the build's tests directory)
-. "$(dirname "$0")/cli_lib.sh" cli_pictures "$@"
+. "$(dirname "$0")/lib_cli.sh" cli_pictures "$@"
 
 PY=python3
 

@@ -14,7 +14,7 @@
 # The processes are frozen (SIGSTOP) once their file has grown past a size, then signalled,
 # so the stop lands mid-run whatever the machine's load.
 # Args: STF_BINARY PROJECT_DIR
-. "$(dirname "$0")/cli_lib.sh" cli_resume "$@"
+. "$(dirname "$0")/lib_cli.sh" cli_resume "$@"
 stf=$STF; src=$PROJ
 export OMP_NUM_THREADS=1 OMP_WAIT_POLICY=passive
 scene=$src/tests/scenes/small_drop.yaml

@@ -4,7 +4,7 @@
 # h5dump reads the file, `stf report --json` prints valid JSON, and --set / --unset runs work.
 #
 # usage: bash cli_run.sh STF_BINARY PROJECT_DIR   (run in the build's tests directory)
-. "$(dirname "$0")/cli_lib.sh" cli_run "$@"
+. "$(dirname "$0")/lib_cli.sh" cli_run "$@"
 
 SCENE="$PROJ/tests/scenes/small_drop.yaml"
 PY=/usr/bin/python3

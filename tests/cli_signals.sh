@@ -10,7 +10,7 @@
 # (an early version of this writer tore 1 of 6 under load); at this scene's 50 frames/s 0 of
 # 80 under load. The kills here use 50 frames/s.
 # Args: STF_BINARY PROJECT_DIR
-. "$(dirname "$0")/cli_lib.sh" cli_signals "$@"
+. "$(dirname "$0")/lib_cli.sh" cli_signals "$@"
 stf=$STF; src=$PROJ
 export OMP_NUM_THREADS=1 OMP_WAIT_POLICY=passive
 scene=$src/tests/scenes/small_drop.yaml

@@ -11,7 +11,7 @@
 # by the pressure in the first 10 ms: +2% at dt = 1 ms, +6% at 2 ms), whose potential
 # energy is not part of E.
 # Args: STF_BINARY PROJECT_DIR [CASE...]   (no CASE: all)
-. "$(dirname "$0")/cli_lib.sh" cli_stability "$@"
+. "$(dirname "$0")/lib_cli.sh" cli_stability "$@"
 stf=$STF; src=$PROJ; shift 2
 export OMP_NUM_THREADS=1 OMP_WAIT_POLICY=passive
 pool=$src/tests/scenes/stab_pool.yaml

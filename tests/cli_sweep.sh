@@ -9,7 +9,7 @@
 # nothing; the plot is a PNG.
 #
 # usage: bash cli_sweep.sh STF_BINARY PROJECT_DIR   (run in the build's tests directory)
-. "$(dirname "$0")/cli_lib.sh" cli_sweep "$@"
+. "$(dirname "$0")/lib_cli.sh" cli_sweep "$@"
 
 SCENE="$PROJ/tests/scenes/small_drop.yaml"
 PY=/usr/bin/python3

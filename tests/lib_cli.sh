@@ -1,5 +1,5 @@
-# cli_lib.sh - the common start of the cli_*.sh tests. Source it first:
-#     . "$(dirname "$0")/cli_lib.sh" NAME "$@"
+# lib_cli.sh - the common start of the cli_*.sh tests. Source it first:
+#     . "$(dirname "$0")/lib_cli.sh" NAME "$@"
 # It reads the test's arguments STF_BINARY PROJECT_DIR into STF and PROJ, makes a work
 # directory that is removed at exit and enters it (WORK), and defines fails (0) and
 # fail MESSAGE, which prints "NAME: FAIL: MESSAGE" and counts it. The environment
