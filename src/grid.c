@@ -107,53 +107,192 @@ static int sort_by_bucket(stf_grid *g, const double *x, int n)
     return 0;
 }
 
-/* Fills particle i's candidate list (r < sqrt(h2)) in cell-visit order; returns how many it
- * has (may exceed the stride, then the list is incomplete). */
-static int find_candidates(const stf_grid *g, const double *x, int i, double h2)
+/* The particles of the (deduplicated) buckets of one cell's 27 neighbour cells, in the
+ * order find_candidates visits them, with their positions side by side: every particle of
+ * that cell tests the same contiguous run instead of hashing 27 cells and gathering
+ * scattered positions again. */
+enum { RUN_PAD = 4 }; /* runs are padded to a multiple of four entries */
+
+typedef struct cell_run {
+    int64_t c[3]; /* the cell the run is for */
+    int have;     /* 0: empty */
+    int len, cap;
+    int32_t *j, *tmp; /* tmp: room for a candidate list as long as the run */
+    double *x, *y, *z;
+} cell_run;
+
+static int run_reserve(cell_run *r, int len)
 {
-    double inv = 1.0 / g->cell;
-    int64_t cx = cell_of(x[3 * i], inv), cy = cell_of(x[3 * i + 1], inv),
-            cz = cell_of(x[3 * i + 2], inv);
+    if (len <= r->cap) return 0;
+    int cap = len + len / 2 + 64;
+    int32_t *j = realloc(r->j, (size_t)cap * sizeof *j);
+    if (j) r->j = j;
+    double *x = realloc(r->x, (size_t)cap * sizeof *x);
+    if (x) r->x = x;
+    double *y = realloc(r->y, (size_t)cap * sizeof *y);
+    if (y) r->y = y;
+    double *z = realloc(r->z, (size_t)cap * sizeof *z);
+    if (z) r->z = z;
+    int32_t *tmp = realloc(r->tmp, (size_t)cap * sizeof *tmp);
+    if (tmp) r->tmp = tmp;
+    if (!j || !x || !y || !z || !tmp) return -1;
+    r->cap = cap;
+    return 0;
+}
+
+static void run_free(cell_run *r)
+{
+    free(r->j);
+    free(r->tmp);
+    free(r->x);
+    free(r->y);
+    free(r->z);
+}
+
+/* Fills r with the neighbour cells of cell c: cells in dz, dy, dx order, two cells sharing a
+ * bucket visited once, each bucket's particles in their sorted order. 0 / -1. */
+static int fill_run(const stf_grid *g, const double *x, const int64_t c[3], cell_run *r)
+{
     uint32_t seen[27];
-    int nseen = 0, cnt = 0;
-    int32_t *out = g->cand + (size_t)i * (size_t)g->cstride;
-    int last = g->cstride - 1;
+    int nseen = 0;
+    r->len = 0;
+    r->have = 0;
     for (int dz = -1; dz <= 1; dz++)
         for (int dy = -1; dy <= 1; dy++)
             for (int dx = -1; dx <= 1; dx++) {
-                uint32_t b = cell_hash(cx + dx, cy + dy, cz + dz) & g->mask;
+                uint32_t b = cell_hash(c[0] + dx, c[1] + dy, c[2] + dz) & g->mask;
                 int dup = 0; /* two cells may share a bucket: visit it once */
                 for (int s = 0; s < nseen; s++) dup |= seen[s] == b;
                 if (dup) continue;
                 seen[nseen++] = b;
-                for (int k = g->start[b]; k < g->start[b + 1]; k++) {
+                int k0 = g->start[b], k1 = g->start[b + 1];
+                if (run_reserve(r, r->len + (k1 - k0) + RUN_PAD) != 0) return -1;
+                for (int k = k0; k < k1; k++) {
                     int j = g->order[k];
-                    if (j == i) continue;
-                    double rx = x[3 * j] - x[3 * i], ry = x[3 * j + 1] - x[3 * i + 1],
-                           rz = x[3 * j + 2] - x[3 * i + 2];
-                    /* branch-free append; past the stride the last slot is overwritten
-                       and the caller widens the lists and redoes them */
-                    out[cnt < last ? cnt : last] = j;
-                    cnt += rx * rx + ry * ry + rz * rz < h2;
+                    r->j[r->len] = j;
+                    r->x[r->len] = x[3 * j];
+                    r->y[r->len] = x[3 * j + 1];
+                    r->z[r->len] = x[3 * j + 2];
+                    r->len++;
                 }
             }
+    for (int m = r->len; m % RUN_PAD; m++) { /* padding no particle is near */
+        r->j[m] = -1;
+        r->x[m] = r->y[m] = r->z[m] = 1e100;
+    }
+    memcpy(r->c, c, sizeof r->c);
+    r->have = 1;
+    return 0;
+}
+
+static void append_candidate(int32_t *out, int last, int *cnt, int j)
+{
+    /* past the stride the last slot is overwritten and the caller widens the lists and
+       redoes them */
+    out[*cnt < last ? *cnt : last] = j;
+    (*cnt)++;
+}
+
+/* Fills particle i's candidate list (r < sqrt(h2)) from the run of its cell; returns how many
+ * it has (may exceed the stride, then the list is incomplete). */
+static int find_candidates(const stf_grid *g, const double *x, int i, double h2,
+                           const cell_run *r)
+{
+    int32_t *out = g->cand + (size_t)i * (size_t)g->cstride;
+    int cnt = 0;
+    double xi = x[3 * i], yi = x[3 * i + 1], zi = x[3 * i + 2];
+    for (int m = 0; m < r->len; m++) {
+        double rx = r->x[m] - xi, ry = r->y[m] - yi, rz = r->z[m] - zi;
+        if (rx * rx + ry * ry + rz * rz < h2 && r->j[m] != i)
+            append_candidate(out, g->cstride - 1, &cnt, r->j[m]);
+    }
     return cnt;
 }
 
-/* Candidate lists within h + skin, and the reference positions. */
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#define HAVE_AVX2_PATH 1
+/* pshufb controls that move the int32 lanes picked by a 4-bit mask to the front, in order */
+static const uint8_t compress4[16][16] = {
+#define L(k) 4 * (k), 4 * (k) + 1, 4 * (k) + 2, 4 * (k) + 3
+#define Z 0x80, 0x80, 0x80, 0x80
+    {Z, Z, Z, Z},          {L(0), Z, Z, Z},       {L(1), Z, Z, Z},       {L(0), L(1), Z, Z},
+    {L(2), Z, Z, Z},       {L(0), L(2), Z, Z},    {L(1), L(2), Z, Z},    {L(0), L(1), L(2), Z},
+    {L(3), Z, Z, Z},       {L(0), L(3), Z, Z},    {L(1), L(3), Z, Z},    {L(0), L(1), L(3), Z},
+    {L(2), L(3), Z, Z},    {L(0), L(2), L(3), Z}, {L(1), L(2), L(3), Z}, {L(0), L(1), L(2), L(3)},
+#undef L
+#undef Z
+};
+
+/* find_candidates four entries at a time with no branch: the hits of each four are packed
+ * to the front of a vector and stored at the end of the list so far (into tmp, which has
+ * room for the whole run), the same list in the same order. */
+__attribute__((target("avx2"))) static int find_candidates_avx2(const stf_grid *g,
+                                                                 const double *x, int i,
+                                                                 double h2, const cell_run *r,
+                                                                 int32_t *tmp)
+{
+    __m256d px = _mm256_set1_pd(x[3 * i]), py = _mm256_set1_pd(x[3 * i + 1]),
+            pz = _mm256_set1_pd(x[3 * i + 2]), lim = _mm256_set1_pd(h2);
+    __m128i self = _mm_set1_epi32(i);
+    int cnt = 0;
+    for (int m = 0; m < r->len; m += 4) {
+        __m256d rx = _mm256_sub_pd(_mm256_loadu_pd(r->x + m), px);
+        __m256d ry = _mm256_sub_pd(_mm256_loadu_pd(r->y + m), py);
+        __m256d rz = _mm256_sub_pd(_mm256_loadu_pd(r->z + m), pz);
+        /* no FMA: the same rounding as find_candidates */
+        __m256d d2 = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(rx, rx), _mm256_mul_pd(ry, ry)),
+                                   _mm256_mul_pd(rz, rz));
+        __m128i j = _mm_loadu_si128((const __m128i *)(r->j + m));
+        int near = _mm256_movemask_pd(_mm256_cmp_pd(d2, lim, _CMP_LT_OQ));
+        near &= ~_mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(j, self)));
+        __m128i ctl = _mm_loadu_si128((const __m128i *)compress4[near]);
+        _mm_storeu_si128((__m128i *)(tmp + cnt), _mm_shuffle_epi8(j, ctl));
+        cnt += __builtin_popcount((unsigned)near);
+    }
+    int keep = cnt < g->cstride ? cnt : g->cstride;
+    memcpy(g->cand + (size_t)i * (size_t)g->cstride, tmp, (size_t)keep * sizeof *tmp);
+    return cnt;
+}
+#endif
+
+/* Candidate lists within h + skin, and the reference positions. The particles are visited in
+ * bucket order, so consecutive ones mostly share a cell and its run. */
 static int rebuild(stf_grid *g, const double *x, int n, double h)
 {
     g->skin_used = g->skin > 0 ? g->skin : SKIN;
     double rc = h * (1.0 + g->skin_used);
     g->cell = rc;
     if (sort_by_bucket(g, x, n) != 0) return -1;
+    double inv = 1.0 / rc;
+#ifdef HAVE_AVX2_PATH
+    int avx2 = __builtin_cpu_supports("avx2");
+#endif
     for (;;) {
-        int most = 0;
-#pragma omp parallel for schedule(static) reduction(max : most)
-        for (int i = 0; i < n; i++) {
-            g->ccount[i] = find_candidates(g, x, i, rc * rc);
-            if (g->ccount[i] > most) most = g->ccount[i];
+        int most = 0, failed = 0;
+#pragma omp parallel reduction(max : most) reduction(| : failed)
+        {
+            cell_run r = {0};
+#pragma omp for schedule(static)
+            for (int k = 0; k < n; k++) {
+                int i = g->order[k];
+                int64_t c[3] = {cell_of(x[3 * i], inv), cell_of(x[3 * i + 1], inv),
+                                cell_of(x[3 * i + 2], inv)};
+                if (!(r.have && c[0] == r.c[0] && c[1] == r.c[1] && c[2] == r.c[2]) &&
+                    fill_run(g, x, c, &r) != 0) {
+                    failed = 1;
+                    continue;
+                }
+#ifdef HAVE_AVX2_PATH
+                if (avx2) g->ccount[i] = find_candidates_avx2(g, x, i, rc * rc, &r, r.tmp);
+                else
+#endif
+                    g->ccount[i] = find_candidates(g, x, i, rc * rc, &r);
+                if (g->ccount[i] > most) most = g->ccount[i];
+            }
+            run_free(&r);
         }
+        if (failed) return -1;
         /* a full row may have lost its last candidate to a later rejected one (the
            branch-free append overwrites the last slot): widen then too */
         if (most < g->cstride) break;
