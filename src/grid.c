@@ -275,7 +275,7 @@ static int rebuild(stf_grid *g, const double *x, int n, double h)
             cell_run r = {0};
 #pragma omp for schedule(static)
             for (int k = 0; k < n; k++) {
-                int i = g->order[k];
+                int i = k;
                 int64_t c[3] = {cell_of(x[3 * i], inv), cell_of(x[3 * i + 1], inv),
                                 cell_of(x[3 * i + 2], inv)};
                 if (!(r.have && c[0] == r.c[0] && c[1] == r.c[1] && c[2] == r.c[2]) &&
@@ -374,9 +374,11 @@ static int morton_cmp(const void *a, const void *b)
     return (p->i > q->i) - (p->i < q->i); /* a total order: deterministic */
 }
 
-/* Particles in Morton (Z-curve) order of their cells of size h: neighbours in all three
- * directions are near in memory (the bucket order of the hash scatters them), which keeps
- * the neighbour loops in cache at large particle counts. */
+/* Particles in Morton (Z-curve) order of the cells the candidate search uses (size h + skin,
+ * the same cell boundaries): neighbours in all three directions are near in memory (the
+ * bucket order of the hash scatters them), which keeps the neighbour loops in cache at large
+ * particle counts, and the particles of a cell are consecutive, so the candidate search
+ * gathers each cell's run once. */
 int grid_sort(stf_grid *g, const double *x, int n, double h)
 {
     if (ensure_particles(g, n) != 0) return -1;
@@ -384,14 +386,15 @@ int grid_sort(stf_grid *g, const double *x, int n, double h)
     if (n == 0) return 0;
     morton_item *it = malloc((size_t)n * sizeof *it);
     if (!it) return -1;
-    double inv = 1.0 / h, lo[3] = {INFINITY, INFINITY, INFINITY};
+    double inv = 1.0 / (h * (1.0 + (g->skin > 0 ? g->skin : SKIN)));
+    double lo[3] = {INFINITY, INFINITY, INFINITY};
     for (int i = 0; i < n; i++)
         for (int a = 0; a < 3; a++) lo[a] = fmin(lo[a], x[3 * i + a]);
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) {
         uint64_t c[3];
         for (int a = 0; a < 3; a++) {
-            double u = floor((x[3 * i + a] - lo[a]) * inv);
+            double u = floor(x[3 * i + a] * inv) - floor(lo[a] * inv);
             c[a] = u < 0 ? 0 : u > 0x1fffff ? 0x1fffff : (uint64_t)u;
         }
         it[i].key = spread3(c[0]) | spread3(c[1]) << 1 | spread3(c[2]) << 2;

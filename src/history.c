@@ -260,38 +260,42 @@ void history_derivative(stf_history *h, int n)
     }
 }
 
+/* Reorders the n rows of 3 elements of each of `rows` arrays of T, `stride` elements apart,
+ * in place (each row is copied to a scratch row, then gathered back), and zeroes each row past
+ * the n rows: particles added later have a zero past. One scratch row per thread, not a
+ * second copy of everything (the ring is 12 n d bytes: a new one every re-sort cost more in
+ * page faults than the permutation itself). 0 / -1. */
+#define PERMUTE_ROWS(T, name)                                                                 \
+    static int name(T *a, size_t stride, int rows, const int *perm, int n)                    \
+    {                                                                                         \
+        int failed = 0;                                                                       \
+        _Pragma("omp parallel reduction(| : failed)")                                          \
+        {                                                                                     \
+            T *tmp = malloc((size_t)n * 3 * sizeof *tmp);                                     \
+            if (!tmp) failed = 1;                                                             \
+            _Pragma("omp for schedule(static)")                                               \
+            for (int s = 0; s < rows; s++) {                                                  \
+                if (!tmp) continue;                                                           \
+                T *row = a + (size_t)s * stride;                                              \
+                memcpy(tmp, row, (size_t)n * 3 * sizeof *tmp);                                \
+                for (int i = 0; i < n; i++)                                                   \
+                    for (int c = 0; c < 3; c++) row[3 * i + c] = tmp[3 * (size_t)perm[i] + c]; \
+                memset(row + (size_t)n * 3, 0, (stride - (size_t)n * 3) * sizeof *row);       \
+            }                                                                                 \
+            free(tmp);                                                                        \
+        }                                                                                     \
+        return failed ? -1 : 0;                                                               \
+    }
+PERMUTE_ROWS(float, permute_rows_f)
+PERMUTE_ROWS(double, permute_rows_d)
+
 int history_permute(stf_history *h, const int *perm, int n)
 {
     if (h->terms) return history_soe_permute(h, perm, n);
-    size_t row = (size_t)h->n_alloc * 3;
-    float *ring = malloc((size_t)h->cap * row * sizeof *ring);
-    if (!ring) return -1;
-#pragma omp parallel for schedule(static)
-    for (int s = 0; s < h->cap; s++) {
-        const float *src = h->ring + (size_t)s * row;
-        float *dst = ring + (size_t)s * row;
-        for (int i = 0; i < n; i++)
-            for (int c = 0; c < 3; c++) dst[3 * i + c] = src[3 * (size_t)perm[i] + c];
-        memset(dst + (size_t)n * 3, 0, (row - (size_t)n * 3) * sizeof *ring);
-    }
-    free(h->ring);
-    h->ring = ring;
-    if (h->old_n0 >= 0) { /* old is per element: reordered, it equals a recomputed one */
-        size_t stride = (size_t)h->n_old * 3;
-        double *old = malloc((size_t)HIST_TBLOCK * stride * sizeof *old);
-        if (!old) {
-            h->old_n0 = -1;
-            return 0;
-        }
-#pragma omp parallel for schedule(static)
-        for (int j = 0; j < HIST_TBLOCK; j++)
-            for (int i = 0; i < n; i++)
-                for (int c = 0; c < 3; c++)
-                    old[(size_t)j * stride + 3 * (size_t)i + c] =
-                        h->old[(size_t)j * stride + 3 * (size_t)perm[i] + c];
-        free(h->old);
-        h->old = old;
-    }
+    if (permute_rows_f(h->ring, (size_t)h->n_alloc * 3, h->cap, perm, n) != 0) return -1;
+    /* old is per element: reordered, it equals a recomputed one */
+    if (h->old_n0 >= 0 && permute_rows_d(h->old, (size_t)h->n_old * 3, HIST_TBLOCK, perm, n) != 0)
+        h->old_n0 = -1; /* recomputed at the next step */
     return 0;
 }
 

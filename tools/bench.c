@@ -381,8 +381,10 @@ static int bench_scaling(const bench_args *a)
     printf("# stf bench scaling %s: %d timed steps after %d warm-up steps\n", a->scene, a->steps,
            a->warmup);
     print_load();
-    printf("%12s %9s %10s %10s %14s %8s\n", "spacing m", "n", "step ms", "cpu ms", "particles/s",
-           "x time");
+    printf("%12s %9s %10s %10s %14s %8s %9s |", "spacing m", "n", "step ms", "cpu ms",
+           "particles/s", "x time", "rebuilds");
+    for (int k = 0; k < STAGE_COUNT; k++) printf(" %9s", stage_names[k]);
+    printf("\n");
     double first = 0;
     int n0 = 0;
     for (int k = 0; k < 2; k++) {
@@ -397,12 +399,15 @@ static int bench_scaling(const bench_args *a)
         int rc = time_scene(a->scene, NULL, ov, nov, a->warmup, a->steps, &t);
         if (rc) return rc;
         if (k == 0) first = t.step_ms, n0 = t.particles;
-        printf("%12.5g %9d %10.2f %10.2f %14.3g %8.2f\n", spk, t.particles, t.step_ms, t.cpu_ms,
-               1e3 * t.particles / t.step_ms, t.step_ms / first);
+        printf("%12.5g %9d %10.2f %10.2f %14.3g %8.2f %9ld |", spk, t.particles, t.step_ms,
+               t.cpu_ms, 1e3 * t.particles / t.step_ms, t.step_ms / first, t.rebuilds);
+        for (int s = 0; s < STAGE_COUNT; s++) printf(" %9.2f", t.stage_ms[s]);
+        printf("\n");
         fflush(stdout);
     }
     (void)n0;
-    printf("# x time: step time / the first row's (linear cost: the particle ratio)\n");
+    printf("# x time: step time / the first row's (linear cost: the particle ratio); rebuilds:\n"
+           "# neighbour candidate rebuilds in the timed steps; then wall ms per step by stage\n");
     return 0;
 }
 
