@@ -640,7 +640,7 @@ static void density_one(stf_fluid *f, int i)
     double h = f->h, m = f->mass, rho = c->rho[i] + m * kernel_w(0, h);
     double sum[3] = {c->gw[3 * i], c->gw[3 * i + 1], c->gw[3 * i + 2]}, sq = 0;
     const int32_t *nb = c->dense ? c->nbt + (size_t)i * (size_t)c->nbs
-                                 : f->grid.nbr + (size_t)i * f->grid.stride;
+                                 : grid_row(&f->grid, i);
     int cnt = c->dense ? c->nbc[i] : f->grid.count[i];
     cy_pair *pr = c->pair + c->off[i];
     float *lp = c->lap + c->off[i];

@@ -2,6 +2,7 @@
 #include "grid.h"
 
 #include <math.h>
+#include <omp.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -55,17 +56,12 @@ static int ensure_particles(stf_grid *g, int n)
     int32_t *count = realloc(g->count, (size_t)cap * sizeof *count);
     if (!count) return -1;
     g->count = count;
-    if (g->stride == 0) g->stride = 96;
-    int32_t *nbr = realloc(g->nbr, (size_t)cap * (size_t)g->stride * sizeof *nbr);
-    if (!nbr) return -1;
-    g->nbr = nbr;
     int32_t *ccount = realloc(g->ccount, (size_t)cap * sizeof *ccount);
     if (!ccount) return -1;
     g->ccount = ccount;
-    if (g->cstride == 0) g->cstride = 96;
-    int32_t *cand = realloc(g->cand, (size_t)cap * (size_t)g->cstride * sizeof *cand);
-    if (!cand) return -1;
-    g->cand = cand;
+    size_t *off = realloc(g->off, ((size_t)cap + 1) * sizeof *off);
+    if (!off) return -1;
+    g->off = off;
     double *xref = realloc(g->xref, (size_t)cap * 3 * sizeof *xref);
     if (!xref) return -1;
     g->xref = xref;
@@ -117,7 +113,7 @@ typedef struct cell_run {
     int64_t c[3]; /* the cell the run is for */
     int have;     /* 0: empty */
     int len, cap;
-    int32_t *j, *tmp; /* tmp: room for a candidate list as long as the run */
+    int32_t *j;
     double *x, *y, *z;
 } cell_run;
 
@@ -133,9 +129,7 @@ static int run_reserve(cell_run *r, int len)
     if (y) r->y = y;
     double *z = realloc(r->z, (size_t)cap * sizeof *z);
     if (z) r->z = z;
-    int32_t *tmp = realloc(r->tmp, (size_t)cap * sizeof *tmp);
-    if (tmp) r->tmp = tmp;
-    if (!j || !x || !y || !z || !tmp) return -1;
+    if (!j || !x || !y || !z) return -1;
     r->cap = cap;
     return 0;
 }
@@ -143,7 +137,6 @@ static int run_reserve(cell_run *r, int len)
 static void run_free(cell_run *r)
 {
     free(r->j);
-    free(r->tmp);
     free(r->x);
     free(r->y);
     free(r->z);
@@ -185,26 +178,16 @@ static int fill_run(const stf_grid *g, const double *x, const int64_t c[3], cell
     return 0;
 }
 
-static void append_candidate(int32_t *out, int last, int *cnt, int j)
+/* Writes particle i's candidates (r < sqrt(h2), in the run's order) to out, which has room
+ * for the whole run; returns how many. */
+static int find_candidates(const double *x, int i, double h2, const cell_run *r, int32_t *out)
 {
-    /* past the stride the last slot is overwritten and the caller widens the lists and
-       redoes them */
-    out[*cnt < last ? *cnt : last] = j;
-    (*cnt)++;
-}
-
-/* Fills particle i's candidate list (r < sqrt(h2)) from the run of its cell; returns how many
- * it has (may exceed the stride, then the list is incomplete). */
-static int find_candidates(const stf_grid *g, const double *x, int i, double h2,
-                           const cell_run *r)
-{
-    int32_t *out = g->cand + (size_t)i * (size_t)g->cstride;
     int cnt = 0;
     double xi = x[3 * i], yi = x[3 * i + 1], zi = x[3 * i + 2];
     for (int m = 0; m < r->len; m++) {
         double rx = r->x[m] - xi, ry = r->y[m] - yi, rz = r->z[m] - zi;
-        if (rx * rx + ry * ry + rz * rz < h2 && r->j[m] != i)
-            append_candidate(out, g->cstride - 1, &cnt, r->j[m]);
+        out[cnt] = r->j[m]; /* branch-free: kept or overwritten by the next */
+        cnt += (rx * rx + ry * ry + rz * rz < h2) & (r->j[m] != i);
     }
     return cnt;
 }
@@ -225,12 +208,11 @@ static const uint8_t compress4[16][16] = {
 };
 
 /* find_candidates four entries at a time with no branch: the hits of each four are packed
- * to the front of a vector and stored at the end of the list so far (into tmp, which has
- * room for the whole run), the same list in the same order. */
-__attribute__((target("avx2"))) static int find_candidates_avx2(const stf_grid *g,
-                                                                 const double *x, int i,
+ * to the front of a vector and stored at the end of the list so far (out has room for the
+ * whole run plus four), the same list in the same order. */
+__attribute__((target("avx2"))) static int find_candidates_avx2(const double *x, int i,
                                                                  double h2, const cell_run *r,
-                                                                 int32_t *tmp)
+                                                                 int32_t *out)
 {
     __m256d px = _mm256_set1_pd(x[3 * i]), py = _mm256_set1_pd(x[3 * i + 1]),
             pz = _mm256_set1_pd(x[3 * i + 2]), lim = _mm256_set1_pd(h2);
@@ -247,17 +229,28 @@ __attribute__((target("avx2"))) static int find_candidates_avx2(const stf_grid *
         int near = _mm256_movemask_pd(_mm256_cmp_pd(d2, lim, _CMP_LT_OQ));
         near &= ~_mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(j, self)));
         __m128i ctl = _mm_loadu_si128((const __m128i *)compress4[near]);
-        _mm_storeu_si128((__m128i *)(tmp + cnt), _mm_shuffle_epi8(j, ctl));
+        _mm_storeu_si128((__m128i *)(out + cnt), _mm_shuffle_epi8(j, ctl));
         cnt += __builtin_popcount((unsigned)near);
     }
-    int keep = cnt < g->cstride ? cnt : g->cstride;
-    memcpy(g->cand + (size_t)i * (size_t)g->cstride, tmp, (size_t)keep * sizeof *tmp);
     return cnt;
 }
 #endif
 
-/* Candidate lists within h + skin, and the reference positions. The particles are visited in
- * bucket order, so consecutive ones mostly share a cell and its run. */
+static int grow_i32(int32_t **p, size_t *cap, size_t need)
+{
+    if (need <= *cap) return 0;
+    size_t c = need + need / 4 + 1024;
+    int32_t *q = realloc(*p, c * sizeof *q);
+    if (!q) return -1;
+    *p = q;
+    *cap = c;
+    return 0;
+}
+
+/* Candidate lists within h + skin, and the reference positions. Each thread searches a
+ * contiguous range of particles (in memory order, so consecutive ones mostly share a cell
+ * and its run) into its own buffer; then the lists are laid end to end in particle order
+ * (row i at off[i], ccount[i] long), and the neighbour rows get the same offsets. */
 static int rebuild(stf_grid *g, const double *x, int n, double h)
 {
     g->skin_used = g->skin > 0 ? g->skin : SKIN;
@@ -268,41 +261,62 @@ static int rebuild(stf_grid *g, const double *x, int n, double h)
 #ifdef HAVE_AVX2_PATH
     int avx2 = __builtin_cpu_supports("avx2");
 #endif
-    for (;;) {
-        int most = 0, failed = 0;
-#pragma omp parallel reduction(max : most) reduction(| : failed)
-        {
-            cell_run r = {0};
-#pragma omp for schedule(static)
-            for (int k = 0; k < n; k++) {
-                int i = k;
-                int64_t c[3] = {cell_of(x[3 * i], inv), cell_of(x[3 * i + 1], inv),
-                                cell_of(x[3 * i + 2], inv)};
-                if (!(r.have && c[0] == r.c[0] && c[1] == r.c[1] && c[2] == r.c[2]) &&
-                    fill_run(g, x, c, &r) != 0) {
-                    failed = 1;
-                    continue;
-                }
-#ifdef HAVE_AVX2_PATH
-                if (avx2) g->ccount[i] = find_candidates_avx2(g, x, i, rc * rc, &r, r.tmp);
-                else
-#endif
-                    g->ccount[i] = find_candidates(g, x, i, rc * rc, &r);
-                if (g->ccount[i] > most) most = g->ccount[i];
-            }
-            run_free(&r);
-        }
-        if (failed) return -1;
-        /* a full row may have lost its last candidate to a later rejected one (the
-           branch-free append overwrites the last slot): widen then too */
-        if (most < g->cstride) break;
-        /* Compressed regions: widen every list and redo (rare, deterministic). */
-        int stride = most + most / 2;
-        int32_t *cand = realloc(g->cand, (size_t)g->n_alloc * (size_t)stride * sizeof *cand);
-        if (!cand) return -1;
-        g->cand = cand;
-        g->cstride = stride;
+    int threads = omp_get_max_threads();
+    if (threads > g->nbuf) { /* the threads' buffers, kept from one rebuild to the next */
+        int32_t **buf = realloc(g->buf, (size_t)threads * sizeof *buf);
+        if (!buf) return -1;
+        g->buf = buf;
+        size_t *cap = realloc(g->buf_cap, (size_t)threads * sizeof *cap);
+        if (!cap) return -1;
+        g->buf_cap = cap;
+        for (int t = g->nbuf; t < threads; t++) g->buf[t] = NULL, g->buf_cap[t] = 0;
+        g->nbuf = threads;
     }
+    int failed = 0;
+#pragma omp parallel
+    {
+        int nt = omp_get_num_threads(), t = omp_get_thread_num();
+        int lo = (int)((int64_t)n * t / nt), hi = (int)((int64_t)n * (t + 1) / nt);
+        cell_run r = {0};
+        int32_t **buf = &g->buf[t];
+        size_t len = 0, *cap = &g->buf_cap[t];
+        int bad = 0;
+        for (int i = lo; i < hi && !bad; i++) {
+            int64_t c[3] = {cell_of(x[3 * i], inv), cell_of(x[3 * i + 1], inv),
+                            cell_of(x[3 * i + 2], inv)};
+            if (!(r.have && c[0] == r.c[0] && c[1] == r.c[1] && c[2] == r.c[2]) &&
+                fill_run(g, x, c, &r) != 0) {
+                bad = 1;
+                break;
+            }
+            if (grow_i32(buf, cap, len + (size_t)r.len + RUN_PAD) != 0) {
+                bad = 1;
+                break;
+            }
+#ifdef HAVE_AVX2_PATH
+            if (avx2) g->ccount[i] = find_candidates_avx2(x, i, rc * rc, &r, *buf + len);
+            else
+#endif
+                g->ccount[i] = find_candidates(x, i, rc * rc, &r, *buf + len);
+            len += (size_t)g->ccount[i];
+        }
+        run_free(&r);
+        if (bad) {
+#pragma omp atomic write
+            failed = 1;
+        }
+#pragma omp barrier
+#pragma omp single
+        if (!failed) {
+            g->off[0] = 0;
+            for (int i = 0; i < n; i++) g->off[i + 1] = g->off[i] + (size_t)g->ccount[i];
+            if (grow_i32(&g->cand, &g->cand_cap, g->off[n]) != 0 ||
+                grow_i32(&g->nbr, &g->nbr_cap, g->off[n]) != 0)
+                failed = 1;
+        } /* implied barrier */
+        if (!failed && hi > lo) memcpy(g->cand + g->off[lo], *buf, len * sizeof **buf);
+    }
+    if (failed) return -1;
     memcpy(g->xref, x, (size_t)n * 3 * sizeof *x);
     g->nref = n;
     g->href = h;
@@ -326,11 +340,11 @@ static double max_moved2(const stf_grid *g, const double *x, int n)
 }
 
 /* Particle i's neighbours within h: its candidates filtered, in their order (the neighbour
- * stride is kept >= the candidate stride, so every candidate has a slot). */
+ * row has a slot for every candidate). */
 static int filter_one(stf_grid *g, const double *x, int i, double h2)
 {
-    const int32_t *c = g->cand + (size_t)i * (size_t)g->cstride;
-    int32_t *out = g->nbr + (size_t)i * (size_t)g->stride;
+    const int32_t *c = g->cand + g->off[i];
+    int32_t *out = g->nbr + g->off[i];
     int cnt = 0;
     for (int k = 0; k < g->ccount[i]; k++) {
         int j = c[k];
@@ -445,20 +459,20 @@ static int build_periodic(stf_grid *g, const double *x, int n, double h)
     for (int a = 0; a < 3; a++) /* cells of at least h that tile the period */
         g->ncell[a] = g->period[a] > 0 ? (int)floor(g->period[a] / h) : 0;
     if (sort_by_bucket(g, x, n) != 0) return -1;
-    for (;;) {
+    if (g->stride == 0) g->stride = 64;
+    for (;;) { /* rows stride apart, widened when one overflows */
+        if (grow_i32(&g->nbr, &g->nbr_cap, (size_t)n * (size_t)g->stride) != 0) return -1;
         int most = 0;
 #pragma omp parallel for schedule(static) reduction(max : most)
         for (int i = 0; i < n; i++) {
             g->count[i] = find_neighbours_periodic(g, x, i, h * h);
             if (g->count[i] > most) most = g->count[i];
         }
-        if (most <= g->stride) return 0;
-        int stride = most + most / 2;
-        int32_t *nbr = realloc(g->nbr, (size_t)g->n_alloc * (size_t)stride * sizeof *nbr);
-        if (!nbr) return -1;
-        g->nbr = nbr;
-        g->stride = stride;
+        if (most <= g->stride) break;
+        g->stride = most + most / 2;
     }
+    for (int i = 0; i <= n; i++) g->off[i] = (size_t)i * (size_t)g->stride;
+    return 0;
 }
 
 int grid_build(stf_grid *g, const double *x, int n, double h)
@@ -467,12 +481,6 @@ int grid_build(stf_grid *g, const double *x, int n, double h)
     g->builds++;
     if (periodic(g)) return build_periodic(g, x, n, h);
     if (grid_due(g, x, n, h) && rebuild(g, x, n, h) != 0) return -1;
-    if (g->stride < g->cstride) {
-        int32_t *nbr = realloc(g->nbr, (size_t)g->n_alloc * (size_t)g->cstride * sizeof *nbr);
-        if (!nbr) return -1;
-        g->nbr = nbr;
-        g->stride = g->cstride;
-    }
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) g->count[i] = filter_one(g, x, i, h * h);
     return 0;
@@ -488,13 +496,25 @@ void grid_free(stf_grid *g)
     free(g->cand);
     free(g->ccount);
     free(g->xref);
+    free(g->off);
+    for (int t = 0; t < g->nbuf; t++) free(g->buf[t]);
+    free(g->buf);
+    free(g->buf_cap);
     memset(g, 0, sizeof *g);
+}
+
+static size_t grid_buf_bytes(const stf_grid *g)
+{
+    size_t b = 0;
+    for (int t = 0; t < g->nbuf; t++) b += g->buf_cap[t] * sizeof(int32_t);
+    return b;
 }
 
 size_t grid_bytes(const stf_grid *g)
 {
     return (size_t)g->n_alloc * (sizeof(uint32_t) + 3 * sizeof(int32_t) + 3 * sizeof(double) +
-                                 (size_t)(g->stride + g->cstride) * sizeof(int32_t)) +
+                                 sizeof(size_t)) +
+           (g->cand_cap + g->nbr_cap) * sizeof(int32_t) + grid_buf_bytes(g) +
            ((size_t)g->nbuckets_alloc + 1) * sizeof(int32_t);
 }
 

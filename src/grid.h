@@ -1,10 +1,10 @@
 /* grid.h - uniform-grid neighbour search (Teschner et al. spatial hashing).
  *
  * Cells of size h + skin are hashed into a power-of-two table; particles are counting-sorted
- * by bucket. Each particle gets a candidate list (r < h + skin) in a fixed-stride table,
- * rebuilt only when some particle has moved more than skin/2 since the last rebuild (Verlet
- * lists), or when the particles were reordered. Every step the candidates are filtered to the
- * neighbours within h. The rebuilds depend on the positions only and the lists are built in
+ * by bucket. Each particle gets a candidate list (r < h + skin), the lists laid end to end in
+ * particle order, rebuilt only when some particle has moved more than skin/2 since the last
+ * rebuild (Verlet lists), or when the particles were reordered. Every step the candidates
+ * are filtered to the neighbours within h, into rows at the same offsets (grid_row). The rebuilds depend on the positions only and the lists are built in
  * parallel with no shared writes, so the lists (and the order of every sum over them) do not
  * depend on the thread count. */
 #ifndef STF_GRID_H
@@ -19,15 +19,20 @@ typedef struct stf_grid {
     uint32_t *key;     /* n: bucket of each particle */
     int32_t *order;    /* n: particle indices sorted by bucket (stable) */
     int32_t *start;    /* nbuckets + 1: first entry of each bucket in order */
-    int32_t *nbr;      /* n * stride: neighbour indices */
+    int32_t *nbr;      /* neighbour indices: particle i's at nbr + off[i] (grid_row) */
     int32_t *count;    /* n: neighbours of each particle */
-    int stride;        /* capacity per particle; grows when a particle has more */
+    size_t *off;       /* n + 1: where each particle's row starts in nbr and cand */
+    size_t nbr_cap;    /* entries nbr holds */
+    int stride;        /* periodic grids: row capacity (off[i] = i stride); grows */
     int n_alloc;       /* particles the arrays hold */
     uint32_t nbuckets_alloc;
     /* Verlet candidates */
-    int32_t *cand;     /* n * cstride: candidate indices (r < h + skin at the rebuild) */
-    int32_t *ccount;   /* n: candidates of each particle */
-    int cstride;
+    int32_t *cand;     /* candidate indices (r < h + skin at the rebuild), row i at off[i] */
+    int32_t *ccount;   /* n: candidates of each particle (the length of its rows) */
+    size_t cand_cap;   /* entries cand holds */
+    int32_t **buf;     /* nbuf: each thread's candidate lists during a rebuild */
+    size_t *buf_cap;   /* nbuf: entries each holds */
+    int nbuf;
     double *xref;      /* 3n: positions at the last rebuild */
     int nref;          /* particle count at the last rebuild */
     double href;       /* h at the last rebuild, m */
@@ -63,12 +68,14 @@ size_t grid_bytes(const stf_grid *g);
  * order as then. 0 / -1 (out of memory). */
 int grid_restore(stf_grid *g, const double *xref, int n, double h, double skin_used);
 
-/* Asks for particle i's neighbour row ahead of a pass that visits the particles in order
- * (rows are a fixed stride apart, wider than the neighbours they hold). */
+/* Particle i's neighbours within h (count[i] of them), after grid_build. */
+static inline const int32_t *grid_row(const stf_grid *g, int i) { return g->nbr + g->off[i]; }
+
+/* Asks for particle i's neighbour row ahead of a pass that visits the particles in order. */
 static inline void grid_prefetch(const stf_grid *g, int i, int n)
 {
     if (i >= n) return;
-    const char *p = (const char *)(g->nbr + (size_t)i * (size_t)g->stride);
+    const char *p = (const char *)grid_row(g, i);
     for (int b = 0; b < g->count[i] * 4; b += 64) __builtin_prefetch(p + b);
 }
 

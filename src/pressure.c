@@ -82,7 +82,7 @@ static void density_one(stf_fluid *f, int i)
     const double *x = f->x;
     double h = f->h, inv_h = 1.0 / h, rho = 0, rho_near = 0;
     grid_prefetch(&f->grid, i + 2, f->n);
-    const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
+    const int32_t *nb = grid_row(&f->grid, i);
     double rx[PCHUNK], ry[PCHUNK], rz[PCHUNK], w2[PCHUNK], w3[PCHUNK];
     for (int k0 = 0; k0 < f->grid.count[i]; k0 += PCHUNK) {
         int m = f->grid.count[i] - k0 < PCHUNK ? f->grid.count[i] - k0 : PCHUNK;
@@ -148,7 +148,7 @@ static void relax_one(stf_fluid *f, int i, double dt)
     double h = f->h, inv_h = 1.0 / h, dx = 0, dy = 0, dz = 0, tiny = 1e-12 * h;
     double half_dt2 = 0.5 * dt * dt;
     grid_prefetch(&f->grid, i + 2, f->n);
-    const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
+    const int32_t *nb = grid_row(&f->grid, i);
     double rx[PCHUNK], ry[PCHUNK], rz[PCHUNK], pj[PCHUNK], pnj[PCHUNK];
     double tx[PCHUNK], ty[PCHUNK], tz[PCHUNK];
     int same[PCHUNK];

@@ -260,7 +260,7 @@ static int adjust_one(stf_fluid *f, int i, int64_t stamp, int64_t *mark, double 
         chunk_add(f, ch, i, j, oL[k], hist);
         if (ch->m == SPRING_CHUNK) flush_chunk(f, ch, dt, khist_scale, np, nL, s->stride, &acc);
     }
-    const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
+    const int32_t *nb = grid_row(&f->grid, i);
     for (int k = 0; k < f->grid.count[i]; k++) {
         int j = nb[k];
         if (mark[j] == stamp) continue;

@@ -21,7 +21,7 @@ static void gather_one(stf_fluid *f, int i, double dt)
     double half_dt = 0.5 * dt;
     double ax = 0, ay = 0, az = 0;
     grid_prefetch(&f->grid, i + 2, f->n);
-    const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
+    const int32_t *nb = grid_row(&f->grid, i);
     double rx[VISC_CHUNK], ry[VISC_CHUNK], rz[VISC_CHUNK], ux[VISC_CHUNK], uy[VISC_CHUNK],
         uz[VISC_CHUNK];
     for (int k0 = 0; k0 < f->grid.count[i]; k0 += VISC_CHUNK) {
