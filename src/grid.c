@@ -325,18 +325,31 @@ static int rebuild(stf_grid *g, const double *x, int n, double h)
     return 0;
 }
 
-/* Largest squared displacement since the last rebuild (max is exact: thread-independent). */
-static double max_moved2(const stf_grid *g, const double *x, int n)
+/* The two largest displacements since the last rebuild, m (max is exact: thread-independent). */
+static void most_moved(const stf_grid *g, const double *x, int n, double *d1, double *d2)
 {
-    double most = 0;
-#pragma omp parallel for schedule(static) reduction(max : most)
-    for (int i = 0; i < n; i++) {
-        double dx = x[3 * i] - g->xref[3 * i], dy = x[3 * i + 1] - g->xref[3 * i + 1],
-               dz = x[3 * i + 2] - g->xref[3 * i + 2];
-        double d2 = dx * dx + dy * dy + dz * dz;
-        if (d2 > most) most = d2;
+    double m1 = 0, m2 = 0; /* squared, m1 >= m2 */
+#pragma omp parallel
+    {
+        double t1 = 0, t2 = 0;
+#pragma omp for schedule(static)
+        for (int i = 0; i < n; i++) {
+            double dx = x[3 * i] - g->xref[3 * i], dy = x[3 * i + 1] - g->xref[3 * i + 1],
+                   dz = x[3 * i + 2] - g->xref[3 * i + 2];
+            double q = dx * dx + dy * dy + dz * dz;
+            if (q > t2) {
+                if (q > t1) t2 = t1, t1 = q;
+                else t2 = q;
+            }
+        }
+#pragma omp critical(grid_most_moved)
+        { /* merge the threads' two largest: the result is the two largest of all */
+            if (t1 > m1) m2 = m1 > t2 ? m1 : t2, m1 = t1;
+            else if (t1 > m2) m2 = t1;
+        }
     }
-    return most;
+    *d1 = sqrt(m1);
+    *d2 = sqrt(m2);
 }
 
 /* Particle i's neighbours within h: its candidates filtered, in their order (the neighbour
@@ -358,9 +371,16 @@ static int filter_one(stf_grid *g, const double *x, int i, double h2)
 
 int grid_due(stf_grid *g, const double *x, int n, double h)
 {
-    double skin = g->skin_used * h;
-    if (g->valid && (n != g->nref || h != g->href || 4.0 * max_moved2(g, x, n) > skin * skin))
+    if (!g->valid || n != g->nref || h != g->href) {
         g->valid = 0;
+        return 1;
+    }
+    /* A pair missing from the candidates was at least h + skin apart at the rebuild; to be
+       closer than h now the two must have moved more than skin between them, which no pair
+       can while the two largest displacements add up to at most that. */
+    double d1, d2;
+    most_moved(g, x, n, &d1, &d2);
+    if (d1 + d2 > g->skin_used * h) g->valid = 0;
     return !g->valid;
 }
 
