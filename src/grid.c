@@ -259,7 +259,7 @@ static int rebuild(stf_grid *g, const double *x, int n, double h)
     if (sort_by_bucket(g, x, n) != 0) return -1;
     double inv = 1.0 / rc;
 #ifdef HAVE_AVX2_PATH
-    int avx2 = __builtin_cpu_supports("avx2");
+    int avx2 = !g->plain && __builtin_cpu_supports("avx2");
 #endif
     int threads = omp_get_max_threads();
     if (threads > g->nbuf) { /* the threads' buffers, kept from one rebuild to the next */

@@ -43,6 +43,7 @@ typedef struct stf_grid {
                           a flow that moves more than skin/2 every step rebuilds every step,
                           and then a thin skin costs less */
     double skin_used;  /* the skin of the current candidate lists */
+    int plain;         /* 1: the plain C candidate search even where AVX2 is there (tests) */
     /* Periodic axes (set by the owner before building; zero: not periodic): along axis a
        with period[a] > 0 (>= 3 cells) cells wrap with that period from origin[a], and
        neighbours are found by the nearest image. */

@@ -1,0 +1,191 @@
+/* test_grid.c - the neighbour search against brute force: every pair closer than h and no
+ * other, through Verlet reuse and rebuilds, in compressed clusters and across periodic
+ * seams; the lists do not depend on the thread count nor on the AVX2 path. */
+#include "grid.h"
+#include "test_util.h"
+
+#include <omp.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+static uint32_t rng = 12345u;
+static double uniform(void)
+{
+    rng = rng * 1664525u + 1013904223u;
+    return (rng >> 8) / 16777216.0;
+}
+
+/* Nearest-image difference along an axis of period p (p = 0: not periodic). */
+static double image(double d, double p) { return p > 0 ? d - p * floor(d / p + 0.5) : d; }
+
+/* Brute force: does every row hold exactly the particles closer than h, each once? Returns
+ * the number of wrong rows. */
+static int wrong_rows(const stf_grid *g, const double *x, int n, double h, const double period[3])
+{
+    int bad = 0;
+    char *seen = calloc((size_t)n, 1);
+    for (int i = 0; i < n; i++) {
+        const int32_t *row = grid_row(g, i);
+        int ok = 1, expect = 0;
+        memset(seen, 0, (size_t)n);
+        for (int k = 0; k < g->count[i]; k++) {
+            int j = row[k];
+            if (j < 0 || j >= n || j == i || seen[j]) ok = 0;
+            else seen[j] = 1;
+        }
+        for (int j = 0; j < n; j++) {
+            if (j == i) continue;
+            double r2 = 0;
+            for (int a = 0; a < 3; a++) {
+                double d = image(x[3 * j + a] - x[3 * i + a], period[a]);
+                r2 += d * d;
+            }
+            if (r2 < h * h) {
+                expect++;
+                if (!seen[j]) ok = 0;
+            }
+        }
+        if (expect != g->count[i]) ok = 0;
+        if (!ok && bad++ < 3)
+            fprintf(stderr, "particle %d: %d neighbours listed, %d closer than h\n", i,
+                    g->count[i], expect);
+    }
+    free(seen);
+    return bad;
+}
+
+/* n particles: a loose cloud over a box with negative corners, plus a dense clump (more
+ * candidates than any fixed row would hold) and a few coincident pairs. */
+static double *cloud(int n, double h)
+{
+    double *x = malloc((size_t)n * 3 * sizeof *x);
+    for (int i = 0; i < n; i++) {
+        int clump = i % 5 == 0;
+        for (int a = 0; a < 3; a++)
+            x[3 * i + a] = clump ? 0.1 + 0.6 * h * uniform() : -0.4 + 0.9 * uniform();
+    }
+    for (int i = 1; i < n; i += 97) memcpy(x + 3 * i, x + 3 * (i - 1), 3 * sizeof *x);
+    return x;
+}
+
+static int lists_equal(const stf_grid *a, const stf_grid *b, int n)
+{
+    for (int i = 0; i < n; i++) {
+        if (a->count[i] != b->count[i]) return 0;
+        if (memcmp(grid_row(a, i), grid_row(b, i), (size_t)a->count[i] * sizeof(int32_t)))
+            return 0;
+    }
+    return 1;
+}
+
+static void test_verlet(void)
+{
+    const int n = 3000;
+    const double h = 0.06, none[3] = {0, 0, 0};
+    double *x = cloud(n, h);
+    stf_grid g = {0};
+    CHECK(grid_build(&g, x, n, h) == 0, "build");
+    CHECK(wrong_rows(&g, x, n, h, none) == 0, "first build");
+    int most = 0;
+    for (int i = 0; i < n; i++) most = g.count[i] > most ? g.count[i] : most;
+    CHECK(most > 96, "the clump should outgrow a 96-slot row (most %d)", most);
+    /* small random moves: the candidates are reused while the two largest moves stay inside
+       the skin, and rebuilt after; the rows are right either way */
+    long rebuilds0 = g.rebuilds;
+    int reused = 0;
+    for (int step = 0; step < 12; step++) {
+        for (int k = 0; k < 3 * n; k++) x[k] += 0.004 * h * (uniform() - 0.5);
+        x[3 * (step * 131 % n)] += 0.3 * h * (step % 4 == 3); /* now and then one jumps */
+        int due = grid_due(&g, x, n, h);
+        reused += !due;
+        CHECK(grid_build(&g, x, n, h) == 0, "build");
+        CHECK(wrong_rows(&g, x, n, h, none) == 0, "step %d (due %d)", step, due);
+    }
+    CHECK(reused > 0, "the candidates were never reused");
+    CHECK(g.rebuilds > rebuilds0, "a particle jumped a third of h: no rebuild");
+    grid_free(&g);
+    free(x);
+}
+
+static void test_threads_and_paths(void)
+{
+    const int n = 4000;
+    const double h = 0.05;
+    double *x = cloud(n, h);
+    stf_grid one = {0}, two = {0}, plain = {0};
+    plain.plain = 1;
+    int threads = omp_get_max_threads();
+    omp_set_num_threads(1);
+    CHECK(grid_build(&one, x, n, h) == 0, "build");
+    CHECK(grid_build(&plain, x, n, h) == 0, "build");
+    omp_set_num_threads(2);
+    CHECK(grid_build(&two, x, n, h) == 0, "build");
+    omp_set_num_threads(threads);
+    CHECK(lists_equal(&one, &two, n), "1 and 2 threads give different lists");
+    CHECK(lists_equal(&one, &plain, n), "the AVX2 and plain searches give different lists");
+    /* a checkpoint's restore from the reference positions gives the same lists */
+    stf_grid back = {0};
+    CHECK(grid_restore(&back, one.xref, n, h, one.skin_used) == 0, "restore");
+    CHECK(grid_build(&back, x, n, h) == 0, "build");
+    CHECK(lists_equal(&one, &back, n), "restored lists differ");
+    grid_free(&one);
+    grid_free(&two);
+    grid_free(&plain);
+    grid_free(&back);
+    free(x);
+}
+
+static void test_sort(void)
+{
+    const int n = 2500;
+    const double h = 0.05, none[3] = {0, 0, 0};
+    double *x = cloud(n, h), *y = malloc((size_t)n * 3 * sizeof *y);
+    stf_grid g = {0};
+    CHECK(grid_sort(&g, x, n, h) == 0, "sort");
+    char *hit = calloc((size_t)n, 1);
+    int perm_ok = 1;
+    for (int i = 0; i < n; i++) {
+        int o = g.order[i];
+        if (o < 0 || o >= n || hit[o]) perm_ok = 0;
+        else hit[o] = 1;
+        memcpy(y + 3 * i, x + 3 * o, 3 * sizeof *y);
+    }
+    CHECK(perm_ok, "grid_sort's order is not a permutation");
+    CHECK(grid_build(&g, y, n, h) == 0, "build");
+    CHECK(wrong_rows(&g, y, n, h, none) == 0, "sorted particles");
+    free(hit);
+    free(y);
+    free(x);
+    grid_free(&g);
+}
+
+static void test_periodic(void)
+{
+    const int n = 1500;
+    const double h = 0.07;
+    double period[3] = {0.5, 0.3, 0};
+    double *x = malloc((size_t)n * 3 * sizeof *x);
+    for (int i = 0; i < n; i++) {
+        x[3 * i] = -0.2 + period[0] * uniform();
+        x[3 * i + 1] = 0.1 + period[1] * uniform();
+        x[3 * i + 2] = 0.25 * uniform();
+    }
+    stf_grid g = {0};
+    memcpy(g.period, period, sizeof period);
+    g.origin[0] = -0.2;
+    g.origin[1] = 0.1;
+    CHECK(grid_build(&g, x, n, h) == 0, "build");
+    CHECK(wrong_rows(&g, x, n, h, period) == 0, "periodic");
+    grid_free(&g);
+    free(x);
+}
+
+int main(void)
+{
+    test_verlet();
+    test_threads_and_paths();
+    test_sort();
+    test_periodic();
+    return test_result("test_grid");
+}
