@@ -83,12 +83,15 @@ static void density_one(stf_fluid *f, int i)
     double h = f->h, inv_h = 1.0 / h, rho = 0, rho_near = 0;
     grid_prefetch(&f->grid, i + 2, f->n);
     const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
-    double rx[PCHUNK], ry[PCHUNK], rz[PCHUNK], w2[PCHUNK], w3[PCHUNK];
+    double xi = x[3 * i], yi = x[3 * i + 1], zi = x[3 * i + 2];
+    double w2[PCHUNK], w3[PCHUNK];
     for (int k0 = 0; k0 < f->grid.count[i]; k0 += PCHUNK) {
         int m = f->grid.count[i] - k0 < PCHUNK ? f->grid.count[i] - k0 : PCHUNK;
-        gather_offsets(x, i, nb + k0, m, rx, ry, rz);
+        const int32_t *js = nb + k0;
         for (int e = 0; e < m; e++) {
-            double r2 = rx[e] * rx[e] + ry[e] * ry[e] + rz[e] * rz[e];
+            int j = js[e];
+            double rx = x[3 * j] - xi, ry = x[3 * j + 1] - yi, rz = x[3 * j + 2] - zi;
+            double r2 = rx * rx + ry * ry + rz * rz;
             double a = 1.0 - sqrt(r2) * inv_h;
             int in = r2 < h * h; /* out: adds +0, which leaves the sums' bits as they are */
             w2[e] = in ? a * a : 0.0;
@@ -149,34 +152,36 @@ static void relax_one(stf_fluid *f, int i, double dt)
     double half_dt2 = 0.5 * dt * dt;
     grid_prefetch(&f->grid, i + 2, f->n);
     const int32_t *nb = f->grid.nbr + (size_t)i * f->grid.stride;
-    double rx[PCHUNK], ry[PCHUNK], rz[PCHUNK], pj[PCHUNK], pnj[PCHUNK];
+    double xi = x[3 * i], yi = x[3 * i + 1], zi = x[3 * i + 2], Pi = P[i], Pni = Pn[i];
     double tx[PCHUNK], ty[PCHUNK], tz[PCHUNK];
     int same[PCHUNK];
     for (int k0 = 0; k0 < f->grid.count[i]; k0 += PCHUNK) {
         int m = f->grid.count[i] - k0 < PCHUNK ? f->grid.count[i] - k0 : PCHUNK;
-        gather_offsets(x, i, nb + k0, m, rx, ry, rz);
+        const int32_t *js = nb + k0;
+        int any_same = 0;
         for (int e = 0; e < m; e++) {
-            int j = nb[k0 + e];
-            pj[e] = P[j], pnj[e] = Pn[j];
-        }
-        for (int e = 0; e < m; e++) {
-            double r = sqrt(rx[e] * rx[e] + ry[e] * ry[e] + rz[e] * rz[e]);
+            int j = js[e];
+            double rx = x[3 * j] - xi, ry = x[3 * j + 1] - yi, rz = x[3 * j + 2] - zi;
+            double r = sqrt(rx * rx + ry * ry + rz * rz);
             double a = 1.0 - r * inv_h, len = r > tiny ? r : 1.0;
-            double D = half_dt2 * ((P[i] + pj[e]) * a + (Pn[i] + pnj[e]) * a * a) / len;
+            double D = half_dt2 * ((Pi + P[j]) * a + (Pni + Pn[j]) * a * a) / len;
             int in = (r < h) & (r > tiny); /* out: adds +-0 (the sums are never -0) */
             same[e] = r <= tiny;
-            tx[e] = in ? D * rx[e] : 0.0;
-            ty[e] = in ? D * ry[e] : 0.0;
-            tz[e] = in ? D * rz[e] : 0.0;
+            any_same |= same[e];
+            tx[e] = in ? D * rx : 0.0;
+            ty[e] = in ? D * ry : 0.0;
+            tz[e] = in ? D * rz : 0.0;
         }
-        for (int e = 0; e < m; e++) {
-            if (same[e]) { /* coincident: separate along a direction chosen by the ids */
-                int j = nb[k0 + e];
+        if (any_same) /* coincident: separate along a direction chosen by the ids */
+            for (int e = 0; e < m; e++) {
+                if (!same[e]) continue;
+                int j = js[e];
                 double ex, ey, ez;
                 coincident_direction(f->id[i], f->id[j], &ex, &ey, &ez);
-                double D = half_dt2 * ((P[i] + P[j]) + (Pn[i] + Pn[j]));
+                double D = half_dt2 * ((Pi + P[j]) + (Pni + Pn[j]));
                 tx[e] = D * ex, ty[e] = D * ey, tz[e] = D * ez;
             }
+        for (int e = 0; e < m; e++) {
             dx -= tx[e];
             dy -= ty[e];
             dz -= tz[e];
