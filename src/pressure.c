@@ -71,6 +71,23 @@ static void wall_sums(const stf_fluid *f, double d, double out[W_COUNT])
         out[k] = (1 - t) * f->wall_table[k][b] + t * f->wall_table[k][b + 1];
 }
 
+/* 1 when x is certainly farther than h from collider c's surface, by a sphere test: the
+ * collider's bounding sphere (radius c->bound about c->pos) holds the solid, and for these
+ * shapes the distance function is the exact distance outside, so it is at least the
+ * distance to that sphere. The margin covers rounding, so the distance skipped would have
+ * been >= h anyway (same results). Planes, containers (bound < 0) and convex hulls (whose
+ * distance is the largest face-plane distance, less than the true one) are always asked. */
+static int wall_far(const collider *c, const double x[3], double h)
+{
+    int shape = c->def.shape;
+    if (c->bound < 0 || !(shape == STF_SHAPE_SPHERE || shape == STF_SHAPE_BOX ||
+                          shape == STF_SHAPE_CAPSULE || shape == STF_SHAPE_CYLINDER))
+        return 0;
+    double dx = x[0] - c->pos[0], dy = x[1] - c->pos[1], dz = x[2] - c->pos[2];
+    double R = (c->bound + h) * (1.0 + 1e-9);
+    return dx * dx + dy * dy + dz * dz > R * R;
+}
+
 /* Neighbours are taken in chunks: gathered into contiguous arrays, then the arithmetic in a
  * loop the compiler vectorizes (AVX2 where the processor has it: the same results; the
  * square roots and divisions are most of the cost), then summed in list order. */
@@ -104,6 +121,7 @@ static void density_one(stf_fluid *f, int i)
     }
     for (int c = 0; c < f->ncolliders; c++) {
         double nrm[3], w[W_COUNT];
+        if (wall_far(&f->colliders[c], x + 3 * i, h)) continue;
         double d = collider_sdf(&f->colliders[c], x + 3 * i, nrm);
         if (d >= h) continue;
         wall_sums(f, d, w);
@@ -201,6 +219,7 @@ static void relax_one(stf_fluid *f, int i, double dt)
 static int wall_push_one(stf_fluid *f, const collider *c, int i, double dt, double *push)
 {
     double nrm[3], w[W_COUNT];
+    if (wall_far(c, f->x + 3 * i, f->h)) return 0;
     double d = collider_sdf(c, f->x + 3 * i, nrm);
     if (d >= f->h) return 0;
     wall_sums(f, d, w);
