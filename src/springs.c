@@ -326,10 +326,12 @@ int springs_step(stf_fluid *f, double dt)
                              ? f->def.k_hist * history_scale(f->def.q, dt)
                              : 0.0;
     if (f->def.reference_spacing > 0) khist_scale *= f->def.reference_spacing / f->def.spacing;
+    double most_gain = 0; /* the largest sum of gains (saturated_one) */
     for (;;) {
         int most = 0;
+        most_gain = 0;
         int64_t base = (int64_t)f->steps * (int64_t)s->n_alloc;
-#pragma omp parallel reduction(max : most)
+#pragma omp parallel reduction(max : most, most_gain)
         {
             int64_t *mark = s->mark + (size_t)omp_get_thread_num() * (size_t)s->n_alloc;
             spring_chunk ch;
@@ -337,6 +339,7 @@ int springs_step(stf_fluid *f, double dt)
             for (int i = 0; i < n; i++) {
                 s->count2[i] = adjust_one(f, i, base + i, mark, dt, khist_scale, &ch);
                 if (s->count2[i] > most) most = s->count2[i];
+                if (s->gain[i] > most_gain) most_gain = s->gain[i];
             }
         }
         if (most <= s->stride) break;
@@ -346,10 +349,6 @@ int springs_step(stf_fluid *f, double dt)
     double *tr = s->rest;
     s->partner = s->partner2, s->count = s->count2, s->rest = s->rest2;
     s->partner2 = tp, s->count2 = tc, s->rest2 = tr;
-    double most_gain = 0;
-#pragma omp parallel for schedule(static) reduction(max : most_gain)
-    for (int i = 0; i < n; i++)
-        if (s->gain[i] > most_gain) most_gain = s->gain[i];
     if (most_gain > 1.0) { /* saturate (see saturated_one); the common case costs nothing more */
 #pragma omp parallel for schedule(static)
         for (int i = 0; i < n; i++) {
