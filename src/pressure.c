@@ -243,21 +243,28 @@ void pressure_relax(stf_fluid *f, double dt)
     for (int i = 0; i < n; i++) relax_one(f, i, dt);
     /* Walls after the pairs, each collider's pushes gathered separately so its reaction is
      * summed in particle order. The pair displacements wait in xprev-free scratch: apply
-     * them first, then the wall pushes (all from the same pressures). */
+     * them first, then the wall pushes (all from the same pressures). Each particle's push
+     * depends on its own position and pressures only, so the pair displacement, the first
+     * collider's push and its application are one pass over the particles. */
+    if (f->ncolliders == 0) {
 #pragma omp parallel for schedule(static)
-    for (int i = 0; i < 3 * n; i++) f->x[i] += f->dx[i];
+        for (int i = 0; i < 3 * n; i++) f->x[i] += f->dx[i];
+    }
     for (int c = 0; c < f->ncolliders; c++) {
         collider *col = &f->colliders[c];
         char *hit = f->hit;
+        double *x = f->x, *push = f->dx, to_impulse = f->mass / dt;
 #pragma omp parallel for schedule(static)
-        for (int i = 0; i < n; i++) hit[i] = (char)wall_push_one(f, col, i, dt, f->dx);
-#pragma omp parallel for schedule(static)
-        for (int i = 0; i < n; i++)
+        for (int i = 0; i < n; i++) {
+            if (c == 0)
+                for (int a = 0; a < 3; a++) x[3 * i + a] += push[3 * i + a];
+            hit[i] = (char)wall_push_one(f, col, i, dt, push);
             if (hit[i])
                 for (int a = 0; a < 3; a++) {
-                    f->x[3 * i + a] += f->dx[3 * i + a];
-                    f->dx[3 * i + a] *= f->mass / dt; /* the impulse the particle got */
+                    x[3 * i + a] += push[3 * i + a];
+                    push[3 * i + a] *= to_impulse; /* the impulse the particle got */
                 }
+        }
         collider_take_reaction(col, f->dx, f->x, hit, n);
     }
 }
