@@ -237,9 +237,12 @@ static int wall_push_one(stf_fluid *f, const collider *c, int i, double dt, doub
 void pressure_relax(stf_fluid *f, double dt)
 {
     int n = f->n;
-#pragma omp parallel for schedule(static)
+    /* Dynamic chunks: each particle's result depends on the inputs only, not on the thread
+       that computes it, and a thread that was held up (the cores are shared) or got the
+       denser half of the fluid does not hold the other one up at the end of the pass. */
+#pragma omp parallel for schedule(dynamic, 256)
     for (int i = 0; i < n; i++) density_one(f, i);
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(dynamic, 256)
     for (int i = 0; i < n; i++) relax_one(f, i, dt);
     /* Walls after the pairs, each collider's pushes gathered separately so its reaction is
      * summed in particle order. The pair displacements wait in xprev-free scratch: apply

@@ -335,7 +335,9 @@ int springs_step(stf_fluid *f, double dt)
         {
             int64_t *mark = s->mark + (size_t)omp_get_thread_num() * (size_t)s->n_alloc;
             spring_chunk ch;
-#pragma omp for schedule(static)
+            /* dynamic chunks (see pressure_relax): the stamps are per particle, so a
+               particle's marks do not depend on which thread's array holds them */
+#pragma omp for schedule(dynamic, 256)
             for (int i = 0; i < n; i++) {
                 s->count2[i] = adjust_one(f, i, base + i, mark, dt, khist_scale, &ch);
                 if (s->count2[i] > most) most = s->count2[i];

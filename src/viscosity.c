@@ -58,7 +58,8 @@ static void gather_one(stf_fluid *f, int i, double dt)
 void viscosity_apply(stf_fluid *f, double dt)
 {
     int n = f->n;
-#pragma omp parallel for schedule(static)
+    /* dynamic chunks: the results do not depend on the thread (see pressure_relax) */
+#pragma omp parallel for schedule(dynamic, 256)
     for (int i = 0; i < n; i++) gather_one(f, i, dt);
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < 3 * n; i++) f->v[i] += f->dx[i];
