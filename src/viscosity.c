@@ -8,9 +8,9 @@
 
 #include "fluid.h"
 
-/* Chunks of neighbours: gathered into contiguous arrays, then the arithmetic in a loop the
- * compiler vectorizes (AVX2 where the processor has it: the same results, the square roots
- * and divisions are most of the cost), then summed in list order. */
+/* Chunks of neighbours: the arithmetic in a loop the compiler vectorizes (AVX2 where the
+ * processor has it: the same results), gathering the neighbours' positions and velocities
+ * straight from the arrays (see pressure.c), then summed in list order. */
 #define VISC_CHUNK 64
 
 STF_VECTOR_CLONES
