@@ -80,17 +80,4 @@ int fluid_permute(stf_fluid *f, const int32_t *perm);
 
 static inline int has(const stf_fluid *f, unsigned effect) { return (f->def.effects & effect) != 0; }
 
-/* The offsets x_j - x_i of m neighbours nb[0..m) into contiguous arrays: the gather step of
- * the chunked neighbour passes (gather, then branch-free arithmetic, then sums in order). */
-static inline void gather_offsets(const double *x, int i, const int32_t *nb, int m, double *rx,
-                                  double *ry, double *rz)
-{
-    for (int e = 0; e < m; e++) {
-        int j = nb[e];
-        rx[e] = x[3 * j] - x[3 * i], ry[e] = x[3 * j + 1] - x[3 * i + 1],
-        rz[e] = x[3 * j + 2] - x[3 * i + 2];
-    }
-}
-
-
 #endif
