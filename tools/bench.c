@@ -130,6 +130,7 @@ typedef struct timing {
     size_t bytes[6];               /* per effect, bytes (index = bit of enum stf_effect) */
     int history_steps;
     long rebuilds;                 /* neighbour candidate rebuilds in the timed steps */
+    double neighbours;             /* neighbours within h per particle at the end */
 } timing;
 
 static const char *const effect_names[6] = {"gravity", "viscosity", "pressure", "springs",
@@ -191,6 +192,9 @@ static int time_scene(const char *path, const char *text, const stf_override *ov
         for (int e = 0; e < 6; e++) t->bytes[e] = stf_fluid_effect_bytes(sim->fluid, 1u << e);
         t->history_steps = stf_fluid_history_steps(sim->fluid);
         t->rebuilds = sim->fluid->grid.rebuilds - rebuilds0;
+        long nb = 0;
+        for (int i = 0; i < t->particles; i++) nb += sim->fluid->grid.count[i];
+        t->neighbours = t->particles > 0 ? (double)nb / t->particles : 0;
     }
     stf_sim_destroy(sim);
     stf_scene_free(sc);
@@ -381,8 +385,8 @@ static int bench_scaling(const bench_args *a)
     printf("# stf bench scaling %s: %d timed steps after %d warm-up steps\n", a->scene, a->steps,
            a->warmup);
     print_load();
-    printf("%12s %9s %10s %10s %14s %8s %9s |", "spacing m", "n", "step ms", "cpu ms",
-           "particles/s", "x time", "rebuilds");
+    printf("%12s %9s %10s %10s %14s %8s %9s %6s %7s |", "spacing m", "n", "step ms", "cpu ms",
+           "particles/s", "x time", "rebuilds", "nbrs", "springs");
     for (int k = 0; k < STAGE_COUNT; k++) printf(" %9s", stage_names[k]);
     printf("\n");
     double first = 0;
@@ -399,15 +403,17 @@ static int bench_scaling(const bench_args *a)
         int rc = time_scene(a->scene, NULL, ov, nov, a->warmup, a->steps, &t);
         if (rc) return rc;
         if (k == 0) first = t.step_ms, n0 = t.particles;
-        printf("%12.5g %9d %10.2f %10.2f %14.3g %8.2f %9ld |", spk, t.particles, t.step_ms,
-               t.cpu_ms, 1e3 * t.particles / t.step_ms, t.step_ms / first, t.rebuilds);
+        printf("%12.5g %9d %10.2f %10.2f %14.3g %8.2f %9ld %6.1f %7.1f |", spk, t.particles,
+               t.step_ms, t.cpu_ms, 1e3 * t.particles / t.step_ms, t.step_ms / first, t.rebuilds,
+               t.neighbours, 2.0 * (double)t.springs / t.particles);
         for (int s = 0; s < STAGE_COUNT; s++) printf(" %9.2f", t.stage_ms[s]);
         printf("\n");
         fflush(stdout);
     }
     (void)n0;
     printf("# x time: step time / the first row's (linear cost: the particle ratio); rebuilds:\n"
-           "# neighbour candidate rebuilds in the timed steps; then wall ms per step by stage\n");
+           "# neighbour candidate rebuilds in the timed steps; nbrs, springs: per particle at the\n"
+           "# end (the work of each neighbour and spring pass); then wall ms per step by stage\n");
     return 0;
 }
 
