@@ -483,7 +483,7 @@ int stf_fluid_step(stf_fluid *f, double dt)
         /* Particles are re-sorted by cell (memory locality) when the neighbour candidates
            are rebuilt anyway, at most every reorder_interval steps: particles that stay put
            stay in order and keep their candidate lists. */
-        if (grid_due(&f->grid, f->x, n, f->h) && f->steps >= f->next_reorder) {
+        if (f->steps >= f->next_reorder && grid_due(&f->grid, f->x, n, f->h)) {
             if (grid_sort(&f->grid, f->x, n, f->h) != 0 || reorder_by_cell(f) != 0) goto oom;
             f->next_reorder = f->steps + f->reorder_interval;
         }

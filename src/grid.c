@@ -371,6 +371,71 @@ static int filter_one(stf_grid *g, const double *x, int i, double h2)
     return cnt;
 }
 
+/* 1 when every two particles that may be closer than h now moved less than lim relative to
+ * each other since the rebuild: the particles are bucketed by their current cells (of size
+ * h + skin, so two particles closer than h are in neighbouring cells), each bucket gets the
+ * bounding box of its particles' displacements, and for every cell and each of its 27
+ * neighbours the box around both boxes must be narrower than lim across. A flow that carries
+ * a region along as a whole (the fluid pushed ahead of an impact) does not ask for new lists
+ * however far it goes. 0 when some pair may have, or when out of memory. */
+static int relative_moves_ok(stf_grid *g, const double *x, int n, double lim)
+{
+    if (sort_by_bucket(g, x, n) != 0) return 0;
+    size_t nb = (size_t)g->mask + 1;
+    if (nb > g->nbox) {
+        double *box = realloc(g->box, nb * 6 * sizeof *box);
+        if (!box) return 0;
+        g->box = box;
+        g->nbox = nb;
+    }
+#pragma omp parallel for schedule(static)
+    for (size_t b = 0; b < nb; b++) {
+        if (g->start[b] == g->start[b + 1]) continue; /* empty: never read */
+        double *bb = g->box + 6 * b; /* lo[3], hi[3] of the displacements */
+        for (int a = 0; a < 3; a++) bb[a] = INFINITY, bb[3 + a] = -INFINITY;
+        for (int k = g->start[b]; k < g->start[b + 1]; k++) {
+            int i = g->order[k];
+            for (int a = 0; a < 3; a++) {
+                double d = x[3 * i + a] - g->xref[3 * i + a];
+                bb[a] = fmin(bb[a], d);
+                bb[3 + a] = fmax(bb[3 + a], d);
+            }
+        }
+    }
+    double inv = 1.0 / g->cell, lim2 = lim * lim;
+    int ok = 1;
+#pragma omp parallel
+    {
+        int64_t last[3] = {0, 0, 0};
+        int have = 0;
+#pragma omp for schedule(static) reduction(& : ok)
+        for (int k = 0; k < n; k++) {
+            int i = g->order[k];
+            int64_t c[3] = {cell_of(x[3 * i], inv), cell_of(x[3 * i + 1], inv),
+                            cell_of(x[3 * i + 2], inv)};
+            /* once per cell: consecutive particles of a bucket mostly share one */
+            if (have && c[0] == last[0] && c[1] == last[1] && c[2] == last[2]) continue;
+            memcpy(last, c, sizeof last);
+            have = 1;
+            const double *mine = g->box + 6 * (size_t)g->key[i];
+            for (int dz = -1; dz <= 1; dz++)
+                for (int dy = -1; dy <= 1; dy++)
+                    for (int dx = -1; dx <= 1; dx++) {
+                        uint32_t b = cell_hash(c[0] + dx, c[1] + dy, c[2] + dz) & g->mask;
+                        if (g->start[b] == g->start[b + 1]) continue; /* empty */
+                        const double *o = g->box + 6 * (size_t)b;
+                        double w2 = 0;
+                        for (int a = 0; a < 3; a++) {
+                            double w = fmax(mine[3 + a], o[3 + a]) - fmin(mine[a], o[a]);
+                            w2 += w * w;
+                        }
+                        ok &= w2 <= lim2;
+                    }
+        }
+    }
+    return ok;
+}
+
 int grid_due(stf_grid *g, const double *x, int n, double h)
 {
     if (!g->valid || n != g->nref || h != g->href) {
@@ -378,11 +443,12 @@ int grid_due(stf_grid *g, const double *x, int n, double h)
         return 1;
     }
     /* A pair missing from the candidates was at least h + skin apart at the rebuild; to be
-       closer than h now the two must have moved more than skin between them, which no pair
-       can while the two largest displacements add up to at most that. */
-    double d1, d2;
+       closer than h now, the two must have moved more than the skin relative to each other.
+       No pair can while the two largest displacements add up to at most that; else the
+       pairs that can be close now are checked (relative_moves_ok). */
+    double d1, d2, lim = g->skin_used * h;
     most_moved(g, x, n, &d1, &d2);
-    if (d1 + d2 > g->skin_used * h) g->valid = 0;
+    if (d1 + d2 > lim && !relative_moves_ok(g, x, n, lim)) g->valid = 0;
     return !g->valid;
 }
 
@@ -519,6 +585,7 @@ void grid_free(stf_grid *g)
     free(g->ccount);
     free(g->xref);
     free(g->off);
+    free(g->box);
     for (int t = 0; t < g->nbuf; t++) free(g->buf[t]);
     free(g->buf);
     free(g->buf_cap);
@@ -537,6 +604,7 @@ size_t grid_bytes(const stf_grid *g)
     return (size_t)g->n_alloc * (sizeof(uint32_t) + 3 * sizeof(int32_t) + 3 * sizeof(double) +
                                  sizeof(size_t)) +
            (g->cand_cap + g->nbr_cap) * sizeof(int32_t) + grid_buf_bytes(g) +
+           g->nbox * 6 * sizeof(double) +
            ((size_t)g->nbuckets_alloc + 1) * sizeof(int32_t);
 }
 

@@ -2,9 +2,9 @@
  *
  * Cells of size h + skin are hashed into a power-of-two table; particles are counting-sorted
  * by bucket. Each particle gets a candidate list (r < h + skin), the lists laid end to end in
- * particle order. They are rebuilt only when the two particles that moved most since the
- * last rebuild moved more than the skin between them (Verlet lists), or when the particles
- * were reordered. Every step the candidates are filtered to the neighbours within h, into
+ * particle order. They are rebuilt only when two particles that may be closer than h now
+ * have moved more than the skin relative to each other since the last rebuild (Verlet
+ * lists), or when the particles were reordered. Every step the candidates are filtered to the neighbours within h, into
  * rows at the same offsets (grid_row). The rebuilds depend on the positions only and the
  * lists are built in parallel with no shared writes, so the lists (and the order of every
  * sum over them) do not depend on the thread count. */
@@ -34,6 +34,8 @@ typedef struct stf_grid {
     int32_t **buf;     /* nbuf: each thread's candidate lists during a rebuild */
     size_t *buf_cap;   /* nbuf: entries each holds */
     int nbuf;
+    double *box;       /* nbox * 6: displacement bounds per bucket (grid_due) */
+    size_t nbox;
     double *xref;      /* 3n: positions at the last rebuild */
     int nref;          /* particle count at the last rebuild */
     double href;       /* h at the last rebuild, m */
@@ -55,8 +57,9 @@ typedef struct stf_grid {
 /* Rebuilds buckets and neighbour lists for n particles at x (3n) with radius h.
  * Returns 0, or -1 when out of memory. */
 int grid_build(stf_grid *g, const double *x, int n, double h);
-/* 1 when the next grid_build will rebuild the candidates (the two largest moves add up to
- * more than the skin, the count or h changed, or they were invalidated). */
+/* 1 when the next grid_build will rebuild the candidates (two particles that may be closer
+ * than h moved more than the skin relative to each other, the count or h changed, or they
+ * were invalidated). */
 int grid_due(stf_grid *g, const double *x, int n, double h);
 /* The particles' order along a Morton curve of the candidate cells (into order): for re-sorting
  * the particles. Invalidates. 0 / -1. */

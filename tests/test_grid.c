@@ -104,8 +104,48 @@ static void test_verlet(void)
     }
     CHECK(reused > 0, "the candidates were never reused");
     CHECK(g.rebuilds > rebuilds0, "a particle jumped a third of h: no rebuild");
+    /* carried along as a whole (here 3 h in steps of h/10) the lists stay valid: no rebuild */
+    long rebuilds1 = g.rebuilds;
+    for (int step = 0; step < 30; step++) {
+        for (int i = 0; i < n; i++) x[3 * i] += 0.1 * h, x[3 * i + 2] -= 0.05 * h;
+        CHECK(grid_build(&g, x, n, h) == 0, "build");
+    }
+    CHECK(g.rebuilds == rebuilds1, "a uniform translation rebuilt the lists %ld times",
+          g.rebuilds - rebuilds1);
+    CHECK(wrong_rows(&g, x, n, h, none) == 0, "after the translation");
+    /* a shear of more than the skin across h: due, and the rows right */
+    int due = 0;
+    for (int step = 0; step < 10 && !due; step++) {
+        for (int i = 0; i < n; i++) x[3 * i] += 0.2 * x[3 * i + 1];
+        due = grid_due(&g, x, n, h);
+        CHECK(grid_build(&g, x, n, h) == 0, "build");
+        CHECK(wrong_rows(&g, x, n, h, none) == 0, "shear step %d", step);
+    }
+    CHECK(due, "a shear of 20%% a step never asked for a rebuild");
+    /* a slip along a plane between two layers of cells: everything above it jumps 0.6 h
+       along it, each cell moving as a whole */
+    for (int i = 0; i < n; i++) x[3 * i] += 0.6 * h * (floor(x[3 * i + 1] * (1.0 / g.cell)) >= 1);
+    CHECK(grid_due(&g, x, n, h), "a slip of 0.6 h did not ask for a rebuild");
+    CHECK(grid_build(&g, x, n, h) == 0, "build");
+    CHECK(wrong_rows(&g, x, n, h, none) == 0, "after the slip");
     grid_free(&g);
     free(x);
+}
+
+/* Two particles in neighbouring cells, each moving as a whole: the relative move across the
+ * cells is what counts. */
+static void test_two_cells(void)
+{
+    const double h = 0.1, none[3] = {0, 0, 0}; /* default skin: candidates within 0.125 */
+    double x[6] = {0.0, 0.12, 0.06, 0.126, 0.13, 0.06};
+    stf_grid g = {0};
+    CHECK(grid_build(&g, x, 2, h) == 0, "build");
+    CHECK(g.ccount[0] == 0, "0.1264 apart: not candidates");
+    x[3] -= 0.03; /* now 0.0965 apart: neighbours, after a relative move of 0.3 h */
+    CHECK(grid_due(&g, x, 2, h), "a relative move of 0.3 h across two cells: not due");
+    CHECK(grid_build(&g, x, 2, h) == 0, "build");
+    CHECK(wrong_rows(&g, x, 2, h, none) == 0, "two cells");
+    grid_free(&g);
 }
 
 static void test_threads_and_paths(void)
@@ -184,6 +224,7 @@ static void test_periodic(void)
 int main(void)
 {
     test_verlet();
+    test_two_cells();
     test_threads_and_paths();
     test_sort();
     test_periodic();
