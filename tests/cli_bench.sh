@@ -7,6 +7,8 @@
 #  - accuracy --knobs history: writes the CSV (one row per setting) and a PNG; the reference
 #    (full history) has zero error; the sum-of-exponentials history with 16 terms is closer to
 #    the full history than a 10-step window is;
+#  - grid: two rows (the scene's particles and about 10x as many), candidates per particle
+#    more than neighbours, and the neighbours per particle within 20% of each other;
 #  - table1 refuses a missing scene with exit 2, and an unknown benchmark is exit 2;
 #  - history.terms is refused (exit 2, key named) without mode soe and outside [1, 64].
 # usage: bash cli_bench.sh STF_BINARY PROJECT_DIR
@@ -38,6 +40,12 @@ assert err("soe K=16") < err("window d=10"), (err("soe K=16"), err("window d=10"
 assert all(float(r["cpu_s"]) > 0 for r in rows.values())
 PY
 grep -q "^cheapest history" acc.out || fail "bench accuracy names no cheapest setting"
+
+"$STF" bench grid "$SCENE" --set fluid.spacing=0.04 --steps 2 --threads 1 >grid.out 2>grid.err \
+    || { fail "bench grid exited $?"; cat grid.err >&2; }
+awk '!/^#/ && $1 ~ /^[0-9]/ { rows++; if (!($3 > $4 && $4 > 0)) bad = 1; nb[rows] = $4; n[rows] = $2 }
+     END { if (rows != 2 || bad || n[2] < 7 * n[1] || nb[2] > 1.2 * nb[1] || nb[2] < nb[1] / 1.2) exit 1 }' grid.out \
+    || { fail "bench grid: rows wrong"; cat grid.out >&2; }
 
 "$STF" bench table1 "$WORK/missing.yaml" --steps 1 >/dev/null 2>t1.err
 [ $? -eq 2 ] || fail "table1 with a missing scene: want exit 2"

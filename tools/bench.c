@@ -5,6 +5,8 @@
  *                                      on the bowling ball and a vibrated layer, ~20K particles
  *   stf bench effects SCENE           cost of each effect, turning them off one at a time
  *   stf bench accuracy SCENE          error vs wall time for dt, spacing and the history mode
+ *   stf bench grid SCENE              the neighbour search alone: a candidate rebuild and a
+ *                                      filter, at the scene's particles and at 10x as many
  *   stf bench dam SCENE               Carreau-Yasuda solver speed (issue 8): wall and steps per
  *                                      simulated second, pressure iterations, density error,
  *                                      peak memory, for 1 and 2 threads (--duration, 0.2 s)
@@ -63,11 +65,12 @@ static int parse(int argc, char **argv, bench_args *a)
 {
     memset(a, 0, sizeof *a);
     a->error = 0.01;
-    if (argc < 1) return bad("needs one of table1, effects, accuracy; got", "");
+    if (argc < 1) return bad("needs one of table1, effects, accuracy, scaling, grid, dam; got", "");
     a->what = argv[0];
     if (strcmp(a->what, "table1") && strcmp(a->what, "effects") && strcmp(a->what, "accuracy") &&
-        strcmp(a->what, "scaling") && strcmp(a->what, "dam"))
-        return bad("unknown benchmark (allowed: table1, effects, accuracy, scaling, dam):", a->what);
+        strcmp(a->what, "scaling") && strcmp(a->what, "grid") && strcmp(a->what, "dam"))
+        return bad("unknown benchmark (allowed: table1, effects, accuracy, scaling, grid, dam):",
+                   a->what);
     for (int i = 1; i < argc; i++) {
         const char *s = argv[i];
         int more = i + 1 < argc;
@@ -414,6 +417,76 @@ static int bench_scaling(const bench_args *a)
     printf("# x time: step time / the first row's (linear cost: the particle ratio); rebuilds:\n"
            "# neighbour candidate rebuilds in the timed steps; nbrs, springs: per particle at the\n"
            "# end (the work of each neighbour and spring pass); then wall ms per step by stage\n");
+    return 0;
+}
+
+/* ---------------------------------------------------------------------------- grid */
+
+/* The neighbour search on the scene's initial particles (sorted as the fluid sorts them):
+ * --steps candidate rebuilds (each followed by its filter) and --steps filters alone, at the
+ * scene's spacing and at 10x the particles. */
+static int bench_grid(const bench_args *a)
+{
+    printf("# stf bench grid %s: %d rebuilds and %d filters at the initial positions\n", a->scene,
+           a->steps, a->steps);
+    print_load();
+    printf("%12s %9s %8s %8s %12s %12s %10s\n", "spacing m", "n", "cand", "nbrs", "rebuild ms",
+           "filter ms", "cpu ratio");
+    char err[2048];
+    stf_scene *sc;
+    if (stf_scene_load(a->scene, a->ov, a->nov, &sc, err, sizeof err) != 0) {
+        fprintf(stderr, "%s\n", err);
+        return 2;
+    }
+    double sp = sc->fluid.spacing, first = 0;
+    stf_scene_free(sc);
+    for (int k = 0; k < 2; k++) {
+        char v[64];
+        stf_override ov[MAX_OV + 1];
+        int nov = 0;
+        for (int i = 0; i < a->nov; i++) ov[nov++] = a->ov[i];
+        double spk = k == 0 ? sp : sp / cbrt(10.0);
+        snprintf(v, sizeof v, "%.9g", spk);
+        ov[nov++] = (stf_override){"fluid.spacing", v};
+        stf_sim *sim;
+        if (stf_scene_load(a->scene, ov, nov, &sc, err, sizeof err) != 0 ||
+            stf_sim_create(sc, &sim, err, sizeof err) != 0) {
+            fprintf(stderr, "%s\n", err);
+            return 2;
+        }
+        stf_fluid *f = sim->fluid;
+        int n = f->n;
+        stf_grid g = {0};
+        double *x = malloc((size_t)n * 3 * sizeof *x);
+        int rc = x && grid_sort(&g, f->x, n, f->h) == 0 ? 0 : 3;
+        for (int i = 0; i < n && rc == 0; i++) memcpy(x + 3 * i, f->x + 3 * g.order[i], 3 * sizeof *x);
+        double c0 = cpu_seconds();
+        for (int r = 0; r < a->steps && rc == 0; r++) {
+            grid_invalidate(&g);
+            if (grid_build(&g, x, n, f->h) != 0) rc = 3;
+        }
+        double c1 = cpu_seconds();
+        for (int r = 0; r < a->steps && rc == 0; r++)
+            if (grid_build(&g, x, n, f->h) != 0) rc = 3;
+        double c2 = cpu_seconds();
+        if (rc == 0) {
+            long nc = 0, nn = 0;
+            for (int i = 0; i < n; i++) nc += g.ccount[i], nn += g.count[i];
+            double filter = 1e3 * (c2 - c1) / a->steps, rebuild = 1e3 * (c1 - c0) / a->steps - filter;
+            if (k == 0) first = rebuild + filter;
+            printf("%12.5g %9d %8.1f %8.1f %12.2f %12.2f %10.2f\n", spk, n, (double)nc / n,
+                   (double)nn / n, rebuild, filter, (rebuild + filter) / first);
+        } else {
+            fprintf(stderr, "stf bench grid: out of memory\n");
+        }
+        free(x);
+        grid_free(&g);
+        stf_sim_destroy(sim);
+        stf_scene_free(sc);
+        if (rc) return rc;
+    }
+    printf("# cpu ms per call, all threads (process CPU time); cand, nbrs: candidates (r < 1.25 h)\n"
+           "# and neighbours (r < h) per particle; cpu ratio: (rebuild + filter) / the first row's\n");
     return 0;
 }
 
@@ -882,6 +955,7 @@ int cli_bench(int argc, char **argv)
     if (!strcmp(a.what, "table1")) return bench_table1(&a);
     if (!strcmp(a.what, "effects")) return bench_effects(&a);
     if (!strcmp(a.what, "scaling")) return bench_scaling(&a);
+    if (!strcmp(a.what, "grid")) return bench_grid(&a);
     if (!strcmp(a.what, "dam")) return bench_dam(&a);
     char self[4096];
     ssize_t len = readlink("/proc/self/exe", self, sizeof self - 1);
