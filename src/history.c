@@ -31,7 +31,7 @@ static void fill_weights(stf_history *h, int from)
 }
 
 /* Window mode, time blocks of HIST_TBLOCK samples (see derivative_blocked). */
-enum { HIST_TBLOCK = 16, HIST_CHUNK = 64 };
+enum { HIST_TBLOCK = 16, HIST_CHUNK = 64, HIST_TILE = 12 };
 
 int history_init(stf_history *h, double q, int window, int n)
 {
@@ -145,33 +145,102 @@ int history_push(stf_history *h, const double *v, int n)
  * old_j adds its terms in the order of the samples, oldest first, and a pass started in
  * the middle of a block (after a re-sort, a resize, a resume) adds the same terms in the same
  * order: the sums do not depend on when old was taken, nor on the threads. */
-/* old_j (j >= j0) for the elements [lo, lo + cnt) of the block, into old (stride apart):
- * the HIST_TBLOCK x cnt sums stay in L1 while the samples stream past, each converted once.
- * wx holds the weights padded with zeros past lag d (h->w, see history_init): a term past
- * the window adds +0 to a sum that is never -0, which leaves its bits as they were. */
-static STF_VECTOR_CLONES void old_chunk(const stf_history *h, const double *wx, int j0, int lo,
-                                        int cnt, double *old, size_t stride)
+/* old_j (j >= j0) for the elements [lo, lo + cnt) of the block, into old (stride apart).
+ * A product of a HIST_TBLOCK x d Toeplitz matrix of weights (w_{j+L}) by the d x cnt
+ * samples (v_{n0-L}), blocked as a matrix product: the HIST_TBLOCK x cnt sums c of a chunk
+ * stay in L1, and a micro-kernel (old_kernel) keeps OLD_JB x OLD_EB of them in registers
+ * while it runs over a tile of HIST_TILE samples (each sum loaded and stored once per tile
+ * instead of once per multiply-add). Every sum still adds its terms in the order of the
+ * samples, oldest first, one rounded product and one rounded sum each: the bits are those
+ * of the plain loop, whatever the kernel, tiles or threads. wx holds the weights padded with
+ * zeros past lag d (h->w, see history_init): a term past the window adds +0 to a sum that is
+ * never -0, which leaves its bits as they were. */
+enum { OLD_JB = 4, OLD_EB = 8 }; /* the kernel's sums: OLD_JB future samples x OLD_EB elements */
+
+/* c[j][e] (j < OLD_JB, rows HIST_CHUNK apart; e < OLD_EB) += wl[j - i] * p[i row + e] for
+ * i < num: the samples of a tile, oldest first. The plain C version. */
+static void old_kernel(const float *p, size_t row, int num, const double *wl, double *c)
+{
+    double a[OLD_JB][OLD_EB];
+    for (int j = 0; j < OLD_JB; j++)
+        for (int e = 0; e < OLD_EB; e++) a[j][e] = c[j * HIST_CHUNK + e];
+    for (int i = 0; i < num; i++, p += row, wl--)
+        for (int j = 0; j < OLD_JB; j++)
+            for (int e = 0; e < OLD_EB; e++) a[j][e] += wl[j] * (double)p[e];
+    for (int j = 0; j < OLD_JB; j++)
+        for (int e = 0; e < OLD_EB; e++) c[j * HIST_CHUNK + e] = a[j][e];
+}
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#define HIST_AVX2 1
+/* The same with AVX2 (chosen at run time, old_chunk): 8 sums in 8 ymm registers, the
+ * weights broadcast, the samples converted to double as they are loaded. Multiply, then add
+ * (_mm256_mul_pd, _mm256_add_pd; no FMA): the same roundings as the plain version. */
+__attribute__((target("avx2"))) static void old_kernel_avx2(const float *p, size_t row, int num,
+                                                            const double *wl, double *c)
+{
+    __m256d a0 = _mm256_loadu_pd(c), b0 = _mm256_loadu_pd(c + 4);
+    __m256d a1 = _mm256_loadu_pd(c + HIST_CHUNK), b1 = _mm256_loadu_pd(c + HIST_CHUNK + 4);
+    __m256d a2 = _mm256_loadu_pd(c + 2 * HIST_CHUNK), b2 = _mm256_loadu_pd(c + 2 * HIST_CHUNK + 4);
+    __m256d a3 = _mm256_loadu_pd(c + 3 * HIST_CHUNK), b3 = _mm256_loadu_pd(c + 3 * HIST_CHUNK + 4);
+    for (int i = 0; i < num; i++, p += row, wl--) {
+        __m256d v = _mm256_cvtps_pd(_mm_loadu_ps(p)), u = _mm256_cvtps_pd(_mm_loadu_ps(p + 4));
+        __m256d w = _mm256_broadcast_sd(wl);
+        a0 = _mm256_add_pd(a0, _mm256_mul_pd(w, v)), b0 = _mm256_add_pd(b0, _mm256_mul_pd(w, u));
+        w = _mm256_broadcast_sd(wl + 1);
+        a1 = _mm256_add_pd(a1, _mm256_mul_pd(w, v)), b1 = _mm256_add_pd(b1, _mm256_mul_pd(w, u));
+        w = _mm256_broadcast_sd(wl + 2);
+        a2 = _mm256_add_pd(a2, _mm256_mul_pd(w, v)), b2 = _mm256_add_pd(b2, _mm256_mul_pd(w, u));
+        w = _mm256_broadcast_sd(wl + 3);
+        a3 = _mm256_add_pd(a3, _mm256_mul_pd(w, v)), b3 = _mm256_add_pd(b3, _mm256_mul_pd(w, u));
+    }
+    _mm256_storeu_pd(c, a0), _mm256_storeu_pd(c + 4, b0);
+    _mm256_storeu_pd(c + HIST_CHUNK, a1), _mm256_storeu_pd(c + HIST_CHUNK + 4, b1);
+    _mm256_storeu_pd(c + 2 * HIST_CHUNK, a2), _mm256_storeu_pd(c + 2 * HIST_CHUNK + 4, b2);
+    _mm256_storeu_pd(c + 3 * HIST_CHUNK, a3), _mm256_storeu_pd(c + 3 * HIST_CHUNK + 4, b3);
+}
+#endif
+
+/* more: the same thread takes the next chunk (its samples are prefetched into L2 while this
+ * one is summed; a chunk's 4 lines of a slot are 12 n bytes from the next slot's, too far
+ * apart for the hardware prefetcher). The kernel reads up to OLD_EB - 1 elements past cnt,
+ * inside the ring's row (n_alloc >= n + 16), and their sums are not stored. */
+static void old_chunk(const stf_history *h, int avx2, const double *wx, int j0, int lo, int cnt,
+                      int more, double *old, size_t stride)
 {
     int d = h->cap - 1;
     size_t row = (size_t)h->n_alloc * 3;
-    double a[HIST_TBLOCK][HIST_CHUNK], v[HIST_CHUNK];
-    for (int j = 0; j < HIST_TBLOCK; j++)
-        for (int e = 0; e < HIST_CHUNK; e++) a[j][e] = 0.0;
-    for (int e = cnt; e < HIST_CHUNK; e++) v[e] = 0.0;
-    /* samples n0 - L, L = d - j0 .. 1, oldest first; lag from sample n0 + j: j + L */
-    for (int L = d - j0; L >= 1; L--) {
-        int s = h->head - j0 - L;
-        if (s < 0) s += h->cap;
-        const float *r = h->ring + (size_t)s * row + lo;
-        for (int e = 0; e < cnt; e++) v[e] = r[e];
-        const double *wl = wx + L;
-        for (int j = 0; j < HIST_TBLOCK; j++) {
-            double wk = wl[j];
-            for (int e = 0; e < HIST_CHUNK; e++) a[j][e] += wk * v[e];
-        }
+    double c[HIST_TBLOCK][HIST_CHUNK];
+    int jfirst = j0 / OLD_JB * OLD_JB;
+    for (int j = jfirst; j < HIST_TBLOCK; j++)
+        for (int e = 0; e < HIST_CHUNK; e++) c[j][e] = 0.0;
+    /* samples n0 - L, L = d - j0 .. 1, oldest first (the oldest is in slot head + 1) in
+       tiles of contiguous slots; lag from sample n0 + j: j + L */
+    int s = h->head + 1 == h->cap ? 0 : h->head + 1;
+    for (int L = d - j0; L >= 1;) {
+        int num = L < HIST_TILE ? L : HIST_TILE;
+        if (num > h->cap - s) num = h->cap - s;
+        const float *p = h->ring + (size_t)s * row + lo;
+        if (more)
+            for (int i = 0; i < num; i++)
+                for (int e = 0; e < HIST_CHUNK; e += 16)
+                    __builtin_prefetch(p + i * row + HIST_CHUNK + e, 0, 2);
+        for (int jg = jfirst; jg < HIST_TBLOCK; jg += OLD_JB)
+            for (int e = 0; e < cnt; e += OLD_EB) {
+#ifdef HIST_AVX2
+                if (avx2) {
+                    old_kernel_avx2(p + e, row, num, wx + L + jg, &c[jg][e]);
+                    continue;
+                }
+#endif
+                old_kernel(p + e, row, num, wx + L + jg, &c[jg][e]);
+            }
+        L -= num;
+        s = s + num == h->cap ? 0 : s + num;
     }
     for (int j = j0; j < HIST_TBLOCK; j++)
-        memcpy(old + (size_t)j * stride + lo, a[j], (size_t)cnt * sizeof(double));
+        memcpy(old + (size_t)j * stride + lo, c[j], (size_t)cnt * sizeof(double));
 }
 
 /* old_j for j in [j0, HIST_TBLOCK) of the block starting at sample n0 (= newest - j0). */
@@ -185,11 +254,14 @@ static int fill_old(stf_history *h, long n0, int j0, int n)
         if (!h->old) return -1;
     }
     size_t stride = (size_t)h->n_old * 3;
-    int nchunks = (len + HIST_CHUNK - 1) / HIST_CHUNK;
+    int nchunks = (len + HIST_CHUNK - 1) / HIST_CHUNK, avx2 = 0;
+#ifdef HIST_AVX2
+    avx2 = __builtin_cpu_supports("avx2");
+#endif
 #pragma omp parallel for schedule(static)
     for (int c = 0; c < nchunks; c++) {
         int lo = c * HIST_CHUNK, cnt = len - lo < HIST_CHUNK ? len - lo : HIST_CHUNK;
-        old_chunk(h, h->w, j0, lo, cnt, h->old, stride);
+        old_chunk(h, avx2, h->w, j0, lo, cnt, c + 1 < nchunks, h->old, stride);
     }
     h->old_n0 = n0;
     return 0;
