@@ -31,7 +31,7 @@ static void fill_weights(stf_history *h, int from)
 }
 
 /* Window mode, time blocks of HIST_TBLOCK samples (see derivative_blocked). */
-enum { HIST_TBLOCK = 16, HIST_CHUNK = 64, HIST_TILE = 12 };
+enum { HIST_TBLOCK = 16, HIST_CHUNK = 64, HIST_RUN = 16, HIST_NEWER = 1536 };
 
 int history_init(stf_history *h, double q, int window, int n)
 {
@@ -40,10 +40,14 @@ int history_init(stf_history *h, double q, int window, int n)
     h->q = q;
     h->window = window;
     h->cap = window > 0 ? window + 1 : 64;
-    /* a window's weights are followed by HIST_TBLOCK zeros (old_chunk reads past lag d) */
-    h->w = calloc((size_t)h->cap + (window > 0 ? HIST_TBLOCK : 0), sizeof *h->w);
+    h->w = calloc((size_t)h->cap, sizeof *h->w);
     if (!h->w) return -1;
     fill_weights(h, 1);
+    if (window > 0) { /* followed by HIST_TBLOCK zeros (old_chunk reads past lag d) */
+        h->wf = calloc((size_t)h->cap + HIST_TBLOCK, sizeof *h->wf);
+        if (!h->wf) return -1;
+        for (int k = 0; k < h->cap; k++) h->wf[k] = (float)h->w[k];
+    }
     h->head = -1;
     return history_resize(h, n);
 }
@@ -56,6 +60,7 @@ void history_free(stf_history *h)
     free(h->soe_v0);
     free(h->ring);
     free(h->w);
+    free(h->wf);
     free(h->D);
     free(h->old);
     memset(h, 0, sizeof *h);
@@ -149,65 +154,108 @@ int history_push(stf_history *h, const double *v, int n)
  * A product of a HIST_TBLOCK x d Toeplitz matrix of weights (w_{j+L}) by the d x cnt
  * samples (v_{n0-L}), blocked as a matrix product: the HIST_TBLOCK x cnt sums c of a chunk
  * stay in L1, and a micro-kernel (old_kernel) keeps OLD_JB x OLD_EB of them in registers
- * while it runs over a tile of HIST_TILE samples (each sum loaded and stored once per tile
- * instead of once per multiply-add). Every sum still adds its terms in the order of the
- * samples, oldest first, one rounded product and one rounded sum each: the bits are those
- * of the plain loop, whatever the kernel, tiles or threads. wx holds the weights padded with
- * zeros past lag d (h->w, see history_init): a term past the window adds +0 to a sum that is
- * never -0, which leaves its bits as they were. */
-enum { OLD_JB = 4, OLD_EB = 8 }; /* the kernel's sums: OLD_JB future samples x OLD_EB elements */
+ * while it runs over a run of HIST_RUN samples.
+ *
+ * Precision. The samples are float32 (the ring), and so are the products and their sums
+ * within a run: each run's float sum is then added, exactly converted, into the double c
+ * (float arithmetic does twice the multiply-adds per instruction; the sum is bound by them).
+ * Error of old_j against the same sum in exact arithmetic, with u = 2^-24 (float) and
+ * S = sum |w_k v_k| over its terms: the weight rounded to float (<= u), the product
+ * (<= u), the run's float sum of at most HIST_RUN products (<= (HIST_RUN - 1) u, the
+ * recursive summation bound), the double sums (about d 2^-53): at most
+ * (HIST_RUN + 1) u S + d 2^-53 S (1 + O(u)), i.e. 1.0e-6 S for runs of 16; in practice the
+ * roundings are of both signs and it stays near the float32 rounding the samples already
+ * carry (u S). tests/test_history.c checks that bound against Eq. 3 in double.
+ *
+ * Determinism. The runs are anchored on the lag (run r holds L in (16 r, 16 r + 16]), not
+ * on where the pass starts, and each sum adds its terms oldest first (in its run, then the
+ * runs into c), one rounded product and one rounded sum each, whatever the kernel, the
+ * chunks or the threads. A pass started in the middle of a block (j0 > 0) starts at an
+ * older lag L = d - j0 < d: the terms it leaves out have lags past d, weight 0 (wf holds
+ * HIST_TBLOCK zeros past lag d, see history_init), and they add +0 to a sum that is +0 so
+ * far (-0 + +0 is +0), which leaves every bit as in a pass from the block's start. */
+enum { OLD_JB = 4, OLD_EB = 16 }; /* the kernel's sums: OLD_JB future samples x OLD_EB elements */
 
-/* c[j][e] (j < OLD_JB, rows HIST_CHUNK apart; e < OLD_EB) += wl[j - i] * p[i row + e] for
- * i < num: the samples of a tile, oldest first. The plain C version. */
-static void old_kernel(const float *p, size_t row, int num, const double *wl, double *c)
+/* c[j][e] (j < OLD_JB, rows HIST_CHUNK apart; e < OLD_EB) += the float sum over i < num
+ * of wl[j - i] * ps[i][e]: the samples of a run, oldest first. The plain C version. */
+static void old_kernel(const float *const *ps, int e0, int num, const float *wl, double *c)
 {
-    double a[OLD_JB][OLD_EB];
-    for (int j = 0; j < OLD_JB; j++)
-        for (int e = 0; e < OLD_EB; e++) a[j][e] = c[j * HIST_CHUNK + e];
-    for (int i = 0; i < num; i++, p += row, wl--)
+    float a[OLD_JB][OLD_EB] = {{0}};
+    for (int i = 0; i < num; i++, wl--) {
+        const float *p = ps[i] + e0;
         for (int j = 0; j < OLD_JB; j++)
-            for (int e = 0; e < OLD_EB; e++) a[j][e] += wl[j] * (double)p[e];
+            for (int e = 0; e < OLD_EB; e++) a[j][e] += wl[j] * p[e];
+    }
     for (int j = 0; j < OLD_JB; j++)
-        for (int e = 0; e < OLD_EB; e++) c[j * HIST_CHUNK + e] = a[j][e];
+        for (int e = 0; e < OLD_EB; e++) c[j * HIST_CHUNK + e] += (double)a[j][e];
 }
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #include <immintrin.h>
 #define HIST_AVX2 1
-/* The same with AVX2 (chosen at run time, old_chunk): 8 sums in 8 ymm registers, the
- * weights broadcast, the samples converted to double as they are loaded. Multiply, then add
- * (_mm256_mul_pd, _mm256_add_pd; no FMA): the same roundings as the plain version. */
-__attribute__((target("avx2"))) static void old_kernel_avx2(const float *p, size_t row, int num,
-                                                            const double *wl, double *c)
+/* c[e] += the float sums of 8 lanes, converted to double (exact) */
+__attribute__((target("avx2"))) static inline void old_flush_avx2(double *c, __m256 a)
 {
-    __m256d a0 = _mm256_loadu_pd(c), b0 = _mm256_loadu_pd(c + 4);
-    __m256d a1 = _mm256_loadu_pd(c + HIST_CHUNK), b1 = _mm256_loadu_pd(c + HIST_CHUNK + 4);
-    __m256d a2 = _mm256_loadu_pd(c + 2 * HIST_CHUNK), b2 = _mm256_loadu_pd(c + 2 * HIST_CHUNK + 4);
-    __m256d a3 = _mm256_loadu_pd(c + 3 * HIST_CHUNK), b3 = _mm256_loadu_pd(c + 3 * HIST_CHUNK + 4);
-    for (int i = 0; i < num; i++, p += row, wl--) {
-        __m256d v = _mm256_cvtps_pd(_mm_loadu_ps(p)), u = _mm256_cvtps_pd(_mm_loadu_ps(p + 4));
-        __m256d w = _mm256_broadcast_sd(wl);
-        a0 = _mm256_add_pd(a0, _mm256_mul_pd(w, v)), b0 = _mm256_add_pd(b0, _mm256_mul_pd(w, u));
-        w = _mm256_broadcast_sd(wl + 1);
-        a1 = _mm256_add_pd(a1, _mm256_mul_pd(w, v)), b1 = _mm256_add_pd(b1, _mm256_mul_pd(w, u));
-        w = _mm256_broadcast_sd(wl + 2);
-        a2 = _mm256_add_pd(a2, _mm256_mul_pd(w, v)), b2 = _mm256_add_pd(b2, _mm256_mul_pd(w, u));
-        w = _mm256_broadcast_sd(wl + 3);
-        a3 = _mm256_add_pd(a3, _mm256_mul_pd(w, v)), b3 = _mm256_add_pd(b3, _mm256_mul_pd(w, u));
+    _mm256_storeu_pd(c, _mm256_add_pd(_mm256_loadu_pd(c), _mm256_cvtps_pd(_mm256_castps256_ps128(a))));
+    _mm256_storeu_pd(c + 4, _mm256_add_pd(_mm256_loadu_pd(c + 4), _mm256_cvtps_pd(_mm256_extractf128_ps(a, 1))));
+}
+/* The same with AVX2 (chosen at run time, fill_old): 8 float sums in 8 ymm registers, the
+ * weights broadcast. Multiply, then add (_mm256_mul_ps, _mm256_add_ps; no FMA): the same
+ * roundings as the plain version. */
+__attribute__((target("avx2"))) static void old_kernel_avx2(const float *const *ps, int e0,
+                                                            int num, const float *wl, double *c)
+{
+    __m256 a0 = _mm256_setzero_ps(), b0 = a0, a1 = a0, b1 = a0, a2 = a0, b2 = a0, a3 = a0,
+           b3 = a0;
+    for (int i = 0; i < num; i++, wl--) {
+        const float *p = ps[i] + e0;
+        __m256 v = _mm256_loadu_ps(p), u = _mm256_loadu_ps(p + 8);
+        __m256 w = _mm256_broadcast_ss(wl);
+        a0 = _mm256_add_ps(a0, _mm256_mul_ps(w, v)), b0 = _mm256_add_ps(b0, _mm256_mul_ps(w, u));
+        w = _mm256_broadcast_ss(wl + 1);
+        a1 = _mm256_add_ps(a1, _mm256_mul_ps(w, v)), b1 = _mm256_add_ps(b1, _mm256_mul_ps(w, u));
+        w = _mm256_broadcast_ss(wl + 2);
+        a2 = _mm256_add_ps(a2, _mm256_mul_ps(w, v)), b2 = _mm256_add_ps(b2, _mm256_mul_ps(w, u));
+        w = _mm256_broadcast_ss(wl + 3);
+        a3 = _mm256_add_ps(a3, _mm256_mul_ps(w, v)), b3 = _mm256_add_ps(b3, _mm256_mul_ps(w, u));
     }
-    _mm256_storeu_pd(c, a0), _mm256_storeu_pd(c + 4, b0);
-    _mm256_storeu_pd(c + HIST_CHUNK, a1), _mm256_storeu_pd(c + HIST_CHUNK + 4, b1);
-    _mm256_storeu_pd(c + 2 * HIST_CHUNK, a2), _mm256_storeu_pd(c + 2 * HIST_CHUNK + 4, b2);
-    _mm256_storeu_pd(c + 3 * HIST_CHUNK, a3), _mm256_storeu_pd(c + 3 * HIST_CHUNK + 4, b3);
+    old_flush_avx2(c, a0), old_flush_avx2(c + 8, b0);
+    old_flush_avx2(c + HIST_CHUNK, a1), old_flush_avx2(c + HIST_CHUNK + 8, b1);
+    old_flush_avx2(c + 2 * HIST_CHUNK, a2), old_flush_avx2(c + 2 * HIST_CHUNK + 8, b2);
+    old_flush_avx2(c + 3 * HIST_CHUNK, a3), old_flush_avx2(c + 3 * HIST_CHUNK + 8, b3);
 }
 #endif
+
+static int simd_wanted = 1;
+
+int history_simd(int on)
+{
+    if (on >= 0) simd_wanted = on;
+#ifdef HIST_AVX2
+    return simd_wanted && __builtin_cpu_supports("avx2");
+#else
+    return 0;
+#endif
+}
+
+double history_error_bound(const stf_history *h)
+{
+    /* gamma_k = k u / (1 - k u): k roundings of unit roundoff u (Higham, Accuracy and
+       Stability of Numerical Algorithms, 3.1). The double sums: at most cap + 1 roundings on
+       any term (one product, the additions after it). */
+    double ud = 0x1p-53, uf = 0x1p-24, m = h->cap + 1.0;
+    double dbl = m * ud / (1.0 - m * ud);
+    if (h->terms || h->window <= HIST_TBLOCK || h->pushed - 1 < h->cap) return dbl;
+    double k = HIST_RUN + 1.0, flt = k * uf / (1.0 - k * uf); /* see old_chunk */
+    return flt + dbl * (1.0 + flt);
+}
 
 /* more: the same thread takes the next chunk (its samples are prefetched into L2 while this
  * one is summed; a chunk's 4 lines of a slot are 12 n bytes from the next slot's, too far
  * apart for the hardware prefetcher). The kernel reads up to OLD_EB - 1 elements past cnt,
  * inside the ring's row (n_alloc >= n + 16), and their sums are not stored. */
-static void old_chunk(const stf_history *h, int avx2, const double *wx, int j0, int lo, int cnt,
-                      int more, double *old, size_t stride)
+static void old_chunk(const stf_history *h, int avx2, int j0, int lo, int cnt, int more,
+                      double *old, size_t stride)
 {
     int d = h->cap - 1;
     size_t row = (size_t)h->n_alloc * 3;
@@ -215,29 +263,29 @@ static void old_chunk(const stf_history *h, int avx2, const double *wx, int j0, 
     int jfirst = j0 / OLD_JB * OLD_JB;
     for (int j = jfirst; j < HIST_TBLOCK; j++)
         for (int e = 0; e < HIST_CHUNK; e++) c[j][e] = 0.0;
-    /* samples n0 - L, L = d - j0 .. 1, oldest first (the oldest is in slot head + 1) in
-       tiles of contiguous slots; lag from sample n0 + j: j + L */
+    /* samples n0 - L, L = d - j0 .. 1, oldest first (the oldest is in slot head + 1), in runs
+       of lags (16 r, 16 r + 16]; lag from sample n0 + j: j + L */
     int s = h->head + 1 == h->cap ? 0 : h->head + 1;
     for (int L = d - j0; L >= 1;) {
-        int num = L < HIST_TILE ? L : HIST_TILE;
-        if (num > h->cap - s) num = h->cap - s;
-        const float *p = h->ring + (size_t)s * row + lo;
-        if (more)
-            for (int i = 0; i < num; i++)
-                for (int e = 0; e < HIST_CHUNK; e += 16)
-                    __builtin_prefetch(p + i * row + HIST_CHUNK + e, 0, 2);
+        int num = (L - 1) % HIST_RUN + 1;
+        const float *ps[HIST_RUN];
+        for (int i = 0; i < num; i++) {
+            ps[i] = h->ring + (size_t)s * row + lo;
+            if (more)
+                for (int e = 0; e < HIST_CHUNK; e += 16) __builtin_prefetch(ps[i] + HIST_CHUNK + e, 0, 2);
+            s = s + 1 == h->cap ? 0 : s + 1;
+        }
         for (int jg = jfirst; jg < HIST_TBLOCK; jg += OLD_JB)
             for (int e = 0; e < cnt; e += OLD_EB) {
 #ifdef HIST_AVX2
                 if (avx2) {
-                    old_kernel_avx2(p + e, row, num, wx + L + jg, &c[jg][e]);
+                    old_kernel_avx2(ps, e, num, h->wf + L + jg, &c[jg][e]);
                     continue;
                 }
 #endif
-                old_kernel(p + e, row, num, wx + L + jg, &c[jg][e]);
+                old_kernel(ps, e, num, h->wf + L + jg, &c[jg][e]);
             }
         L -= num;
-        s = s + num == h->cap ? 0 : s + num;
     }
     for (int j = j0; j < HIST_TBLOCK; j++)
         memcpy(old + (size_t)j * stride + lo, c[j], (size_t)cnt * sizeof(double));
@@ -254,17 +302,32 @@ static int fill_old(stf_history *h, long n0, int j0, int n)
         if (!h->old) return -1;
     }
     size_t stride = (size_t)h->n_old * 3;
-    int nchunks = (len + HIST_CHUNK - 1) / HIST_CHUNK, avx2 = 0;
-#ifdef HIST_AVX2
-    avx2 = __builtin_cpu_supports("avx2");
-#endif
+    int nchunks = (len + HIST_CHUNK - 1) / HIST_CHUNK, avx2 = history_simd(-1);
 #pragma omp parallel for schedule(static)
     for (int c = 0; c < nchunks; c++) {
         int lo = c * HIST_CHUNK, cnt = len - lo < HIST_CHUNK ? len - lo : HIST_CHUNK;
-        old_chunk(h, avx2, h->w, j0, lo, cnt, c + 1 < nchunks, h->old, stride);
+        old_chunk(h, avx2, j0, lo, cnt, c + 1 < nchunks, h->old, stride);
     }
     h->old_n0 = n0;
     return 0;
+}
+
+/* D = old_j + sum_{k=j..0} w_k v_{t-k} for the elements [lo, lo + cnt): the block's own
+ * samples, oldest first, streamed slot by slot while the sums stay in L1. */
+static STF_VECTOR_CLONES void newer_part(const stf_history *h, int j, const double *old, int lo,
+                                         int cnt, double *D)
+{
+    size_t row = (size_t)h->n_alloc * 3;
+    double acc[HIST_NEWER];
+    for (int e = 0; e < cnt; e++) acc[e] = old[lo + e];
+    for (int k = j; k >= 0; k--) {
+        int s = h->head - k;
+        if (s < 0) s += h->cap;
+        const float *r = h->ring + (size_t)s * row + lo;
+        double wk = h->w[k];
+        for (int e = 0; e < cnt; e++) acc[e] += wk * r[e];
+    }
+    memcpy(D + lo, acc, (size_t)cnt * sizeof *acc);
 }
 
 static int derivative_blocked(stf_history *h, int n)
@@ -274,23 +337,12 @@ static int derivative_blocked(stf_history *h, int n)
     if (h->old_n0 != n0 || h->n_old < n) {
         if (fill_old(h, n0, j, n) != 0) return -1;
     }
-    size_t stride = (size_t)h->n_old * 3, row = (size_t)h->n_alloc * 3;
-    int len = 3 * n;
-    const double *w = h->w, *old = h->old + (size_t)j * stride;
-    int nchunks = (len + HIST_CHUNK - 1) / HIST_CHUNK;
+    int len = 3 * n, nblocks = (len + HIST_NEWER - 1) / HIST_NEWER;
+    const double *old = h->old + (size_t)j * (size_t)h->n_old * 3;
 #pragma omp parallel for schedule(static)
-    for (int c = 0; c < nchunks; c++) {
-        int lo = c * HIST_CHUNK, cnt = len - lo < HIST_CHUNK ? len - lo : HIST_CHUNK;
-        double acc[HIST_CHUNK];
-        for (int e = 0; e < cnt; e++) acc[e] = old[lo + e];
-        for (int k = j; k >= 0; k--) { /* the block's samples, oldest first */
-            int s = h->head - k;
-            if (s < 0) s += h->cap;
-            const float *r = h->ring + (size_t)s * row + lo;
-            double wk = w[k];
-            for (int e = 0; e < cnt; e++) acc[e] += wk * r[e];
-        }
-        memcpy(h->D + lo, acc, (size_t)cnt * sizeof *acc);
+    for (int b = 0; b < nblocks; b++) {
+        int lo = b * HIST_NEWER, cnt = len - lo < HIST_NEWER ? len - lo : HIST_NEWER;
+        newer_part(h, j, old, lo, cnt, h->D);
     }
     return 0;
 }
@@ -371,7 +423,7 @@ size_t history_bytes(const stf_history *h)
 {
     if (h->terms) return history_soe_bytes(h);
     return (size_t)h->n_alloc * ((size_t)h->cap * 3 * sizeof(float) + 3 * sizeof(double)) +
-           (size_t)h->cap * sizeof(double) +
+           (size_t)h->cap * sizeof(double) + (h->wf ? (size_t)(h->cap + HIST_TBLOCK) * sizeof(float) : 0) +
            (size_t)h->n_old * 3 * HIST_TBLOCK * sizeof(double);
 }
 
