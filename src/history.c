@@ -175,68 +175,104 @@ int history_push(stf_history *h, const double *v, int n)
  * older lag L = d - j0 < d: the terms it leaves out have lags past d, weight 0 (wf holds
  * HIST_TBLOCK zeros past lag d, see history_init), and they add +0 to a sum that is +0 so
  * far (-0 + +0 is +0), which leaves every bit as in a pass from the block's start. */
-enum { OLD_JB = 4, OLD_EB = 16 }; /* the kernel's sums: OLD_JB future samples x OLD_EB elements */
+/* The kernel's sums: up to OLD_JB future samples x OLD_EB elements, in groups of j as many as
+ * the registers hold (AVX2: 16 registers, groups of 6, 6 and 4; AVX-512VL: 32, groups of 8;
+ * the plain C code: 8). */
+enum { OLD_JB = 8, OLD_EB = 16 };
+static const int old_group[3][4] = {{0, 8, 16, 16}, {0, 6, 12, 16}, {0, 8, 16, 16}}; /* by simd */
 
-/* c[j][e] (j < OLD_JB, rows HIST_CHUNK apart; e < OLD_EB) += the float sum over i < num
- * of wl[j - i] * ps[i][e]: the samples of a run, oldest first. The plain C version. */
-static void old_kernel(const float *const *ps, int e0, int num, const float *wl, double *c)
+/* c[j][e] (j < jb, rows HIST_CHUNK apart; e < OLD_EB) += the float sum over i < num of
+ * wl[j - i] * ps[i][e]: the samples of a run, oldest first. The plain C version. */
+static void old_kernel(const float *const *ps, int e0, int num, int jb, const float *wl,
+                       double *c)
 {
     float a[OLD_JB][OLD_EB] = {{0}};
     for (int i = 0; i < num; i++, wl--) {
         const float *p = ps[i] + e0;
-        for (int j = 0; j < OLD_JB; j++)
+        for (int j = 0; j < jb; j++)
             for (int e = 0; e < OLD_EB; e++) a[j][e] += wl[j] * p[e];
     }
-    for (int j = 0; j < OLD_JB; j++)
+    for (int j = 0; j < jb; j++)
         for (int e = 0; e < OLD_EB; e++) c[j * HIST_CHUNK + e] += (double)a[j][e];
 }
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #include <immintrin.h>
-#define HIST_AVX2 1
-/* c[e] += the float sums of 8 lanes, converted to double (exact) */
-__attribute__((target("avx2"))) static inline void old_flush_avx2(double *c, __m256 a)
+#define HIST_X86 1
+/* The same with 256-bit vectors (chosen at run time, history_simd), jb a constant once
+ * inlined: 2 jb float sums of 8 lanes in registers, the weights broadcast. Multiply, then
+ * add (_mm256_mul_ps, _mm256_add_ps; no FMA), the run's sums then converted to double
+ * (exact) and added: the same roundings as the plain version. */
+__attribute__((target("avx2"), always_inline)) static inline void
+old_kernel_vec(const float *const *ps, int e0, int num, int jb, const float *wl, double *c)
 {
-    _mm256_storeu_pd(c, _mm256_add_pd(_mm256_loadu_pd(c), _mm256_cvtps_pd(_mm256_castps256_ps128(a))));
-    _mm256_storeu_pd(c + 4, _mm256_add_pd(_mm256_loadu_pd(c + 4), _mm256_cvtps_pd(_mm256_extractf128_ps(a, 1))));
-}
-/* The same with AVX2 (chosen at run time, fill_old): 8 float sums in 8 ymm registers, the
- * weights broadcast. Multiply, then add (_mm256_mul_ps, _mm256_add_ps; no FMA): the same
- * roundings as the plain version. */
-__attribute__((target("avx2"))) static void old_kernel_avx2(const float *const *ps, int e0,
-                                                            int num, const float *wl, double *c)
-{
-    __m256 a0 = _mm256_setzero_ps(), b0 = a0, a1 = a0, b1 = a0, a2 = a0, b2 = a0, a3 = a0,
-           b3 = a0;
+    __m256 a[OLD_JB], b[OLD_JB];
+    for (int j = 0; j < jb; j++) a[j] = b[j] = _mm256_setzero_ps();
     for (int i = 0; i < num; i++, wl--) {
         const float *p = ps[i] + e0;
         __m256 v = _mm256_loadu_ps(p), u = _mm256_loadu_ps(p + 8);
-        __m256 w = _mm256_broadcast_ss(wl);
-        a0 = _mm256_add_ps(a0, _mm256_mul_ps(w, v)), b0 = _mm256_add_ps(b0, _mm256_mul_ps(w, u));
-        w = _mm256_broadcast_ss(wl + 1);
-        a1 = _mm256_add_ps(a1, _mm256_mul_ps(w, v)), b1 = _mm256_add_ps(b1, _mm256_mul_ps(w, u));
-        w = _mm256_broadcast_ss(wl + 2);
-        a2 = _mm256_add_ps(a2, _mm256_mul_ps(w, v)), b2 = _mm256_add_ps(b2, _mm256_mul_ps(w, u));
-        w = _mm256_broadcast_ss(wl + 3);
-        a3 = _mm256_add_ps(a3, _mm256_mul_ps(w, v)), b3 = _mm256_add_ps(b3, _mm256_mul_ps(w, u));
+        for (int j = 0; j < jb; j++) {
+            __m256 w = _mm256_broadcast_ss(wl + j);
+            a[j] = _mm256_add_ps(a[j], _mm256_mul_ps(w, v));
+            b[j] = _mm256_add_ps(b[j], _mm256_mul_ps(w, u));
+        }
     }
-    old_flush_avx2(c, a0), old_flush_avx2(c + 8, b0);
-    old_flush_avx2(c + HIST_CHUNK, a1), old_flush_avx2(c + HIST_CHUNK + 8, b1);
-    old_flush_avx2(c + 2 * HIST_CHUNK, a2), old_flush_avx2(c + 2 * HIST_CHUNK + 8, b2);
-    old_flush_avx2(c + 3 * HIST_CHUNK, a3), old_flush_avx2(c + 3 * HIST_CHUNK + 8, b3);
+    for (int j = 0; j < jb; j++) {
+        double *cj = c + j * HIST_CHUNK;
+        __m128 lo[2] = {_mm256_castps256_ps128(a[j]), _mm256_castps256_ps128(b[j])};
+        __m128 hi[2] = {_mm256_extractf128_ps(a[j], 1), _mm256_extractf128_ps(b[j], 1)};
+        for (int k = 0; k < 2; k++) {
+            _mm256_storeu_pd(cj + 8 * k, _mm256_add_pd(_mm256_loadu_pd(cj + 8 * k),
+                                                       _mm256_cvtps_pd(lo[k])));
+            _mm256_storeu_pd(cj + 8 * k + 4, _mm256_add_pd(_mm256_loadu_pd(cj + 8 * k + 4),
+                                                           _mm256_cvtps_pd(hi[k])));
+        }
+    }
+}
+__attribute__((target("avx2"))) static void old_kernel_avx2_6(const float *const *ps, int e0,
+                                                              int num, const float *wl, double *c)
+{
+    old_kernel_vec(ps, e0, num, 6, wl, c);
+}
+__attribute__((target("avx2"))) static void old_kernel_avx2_4(const float *const *ps, int e0,
+                                                              int num, const float *wl, double *c)
+{
+    old_kernel_vec(ps, e0, num, 4, wl, c);
+}
+/* AVX-512VL: the same 256-bit code with 32 registers (wider vectors would not be faster on
+ * the AMD Zen 4 this was measured on, which splits them in two) */
+__attribute__((target("avx2,avx512f,avx512vl"))) static void
+old_kernel_avx512_8(const float *const *ps, int e0, int num, const float *wl, double *c)
+{
+    old_kernel_vec(ps, e0, num, 8, wl, c);
 }
 #endif
 
-static int simd_wanted = 1;
-
-int history_simd(int on)
+/* One run of the samples into c for the future samples [jg, jg + jb), elements e0 ... */
+static void old_run(int simd, const float *const *ps, int e0, int num, int jb, const float *wl,
+                    double *c)
 {
-    if (on >= 0) simd_wanted = on;
-#ifdef HIST_AVX2
-    return simd_wanted && __builtin_cpu_supports("avx2");
-#else
-    return 0;
+#ifdef HIST_X86
+    if (simd == 2) old_kernel_avx512_8(ps, e0, num, wl, c);
+    else if (simd == 1 && jb == 6) old_kernel_avx2_6(ps, e0, num, wl, c);
+    else if (simd == 1) old_kernel_avx2_4(ps, e0, num, wl, c);
+    else
 #endif
+        old_kernel(ps, e0, num, jb, wl, c);
+}
+
+static int simd_wanted = 2;
+
+int history_simd(int level)
+{
+    if (level >= 0) simd_wanted = level;
+    int have = 0;
+#ifdef HIST_X86
+    have = __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512f") ? 2
+           : __builtin_cpu_supports("avx2")                                      ? 1
+                                                                                 : 0;
+#endif
+    return simd_wanted < have ? simd_wanted : have;
 }
 
 double history_error_bound(const stf_history *h)
@@ -251,18 +287,20 @@ double history_error_bound(const stf_history *h)
     return flt + dbl * (1.0 + flt);
 }
 
-/* more: the same thread takes the next chunk (its samples are prefetched into L2 while this
- * one is summed; a chunk's 4 lines of a slot are 12 n bytes from the next slot's, too far
- * apart for the hardware prefetcher). The kernel reads up to OLD_EB - 1 elements past cnt,
+/* more: the same thread takes the chunk after next (its samples are prefetched into L2
+ * while this one is summed: a chunk's 4 lines of a slot are 12 n bytes from the next slot's,
+ * too far apart for the hardware prefetcher; one chunk ahead is too late). The kernel reads up to OLD_EB - 1 elements past cnt,
  * inside the ring's row (n_alloc >= n + 16), and their sums are not stored. */
-static void old_chunk(const stf_history *h, int avx2, int j0, int lo, int cnt, int more,
+static void old_chunk(const stf_history *h, int simd, int j0, int lo, int cnt, int more,
                       double *old, size_t stride)
 {
     int d = h->cap - 1;
     size_t row = (size_t)h->n_alloc * 3;
     double c[HIST_TBLOCK][HIST_CHUNK];
-    int jfirst = j0 / OLD_JB * OLD_JB;
-    for (int j = jfirst; j < HIST_TBLOCK; j++)
+    const int *group = old_group[simd];
+    int g0 = 0; /* the groups with a j >= j0 */
+    while (group[g0 + 1] <= j0) g0++;
+    for (int j = group[g0]; j < HIST_TBLOCK; j++)
         for (int e = 0; e < HIST_CHUNK; e++) c[j][e] = 0.0;
     /* samples n0 - L, L = d - j0 .. 1, oldest first (the oldest is in slot head + 1), in runs
        of lags (16 r, 16 r + 16]; lag from sample n0 + j: j + L */
@@ -272,20 +310,14 @@ static void old_chunk(const stf_history *h, int avx2, int j0, int lo, int cnt, i
         const float *ps[HIST_RUN];
         for (int i = 0; i < num; i++) {
             ps[i] = h->ring + (size_t)s * row + lo;
-            if (more)
-                for (int e = 0; e < HIST_CHUNK; e += 16) __builtin_prefetch(ps[i] + HIST_CHUNK + e, 0, 2);
+            if (more) /* the chunk after next */
+                for (int e = 0; e < HIST_CHUNK; e += 16) __builtin_prefetch(ps[i] + 2 * HIST_CHUNK + e, 0, 2);
             s = s + 1 == h->cap ? 0 : s + 1;
         }
-        for (int jg = jfirst; jg < HIST_TBLOCK; jg += OLD_JB)
-            for (int e = 0; e < cnt; e += OLD_EB) {
-#ifdef HIST_AVX2
-                if (avx2) {
-                    old_kernel_avx2(ps, e, num, h->wf + L + jg, &c[jg][e]);
-                    continue;
-                }
-#endif
-                old_kernel(ps, e, num, h->wf + L + jg, &c[jg][e]);
-            }
+        for (int g = g0; g < 3 && group[g] < HIST_TBLOCK; g++)
+            for (int e = 0; e < cnt; e += OLD_EB)
+                old_run(simd, ps, e, num, group[g + 1] - group[g], h->wf + L + group[g],
+                        &c[group[g]][e]);
         L -= num;
     }
     for (int j = j0; j < HIST_TBLOCK; j++)
@@ -303,11 +335,11 @@ static int fill_old(stf_history *h, long n0, int j0, int n)
         if (!h->old) return -1;
     }
     size_t stride = (size_t)h->n_old * 3;
-    int nchunks = (len + HIST_CHUNK - 1) / HIST_CHUNK, avx2 = history_simd(-1);
+    int nchunks = (len + HIST_CHUNK - 1) / HIST_CHUNK, simd = history_simd(-1);
 #pragma omp parallel for schedule(static)
     for (int c = 0; c < nchunks; c++) {
         int lo = c * HIST_CHUNK, cnt = len - lo < HIST_CHUNK ? len - lo : HIST_CHUNK;
-        old_chunk(h, avx2, j0, lo, cnt, c + 1 < nchunks, h->old, stride);
+        old_chunk(h, simd, j0, lo, cnt, c + 2 < nchunks, h->old, stride);
     }
     h->old_n0 = n0;
     return 0;
@@ -319,7 +351,7 @@ static STF_VECTOR_CLONES void newer_part(const stf_history *h, int j, const doub
                                          int cnt, double *D)
 {
     size_t row = (size_t)h->n_alloc * 3;
-    double acc[HIST_NEWER];
+    double *restrict acc = D + lo; /* in L1 while the samples stream past */
     for (int e = 0; e < cnt; e++) acc[e] = old[lo + e];
     for (int k = j; k >= 0; k--) {
         int s = h->head - k;
@@ -328,7 +360,6 @@ static STF_VECTOR_CLONES void newer_part(const stf_history *h, int j, const doub
         double wk = h->w[k];
         for (int e = 0; e < cnt; e++) acc[e] += wk * r[e];
     }
-    memcpy(D + lo, acc, (size_t)cnt * sizeof *acc);
 }
 
 static int derivative_blocked(stf_history *h, int n)
