@@ -289,8 +289,9 @@ double history_error_bound(const stf_history *h)
 
 /* more: the same thread takes the chunk after next (its samples are prefetched into L2
  * while this one is summed: a chunk's 4 lines of a slot are 12 n bytes from the next slot's,
- * too far apart for the hardware prefetcher; one chunk ahead is too late). The kernel reads up to OLD_EB - 1 elements past cnt,
- * inside the ring's row (n_alloc >= n + 16), and their sums are not stored. */
+ * too far apart for the hardware prefetcher; one chunk ahead is too late). The kernel reads
+ * up to OLD_EB - 1 floats past cnt, inside the ring's row (3 n_alloc >= 3 n + 48), and their
+ * sums are not stored. */
 static void old_chunk(const stf_history *h, int simd, int j0, int lo, int cnt, int more,
                       double *old, size_t stride)
 {
@@ -311,7 +312,8 @@ static void old_chunk(const stf_history *h, int simd, int j0, int lo, int cnt, i
         for (int i = 0; i < num; i++) {
             ps[i] = h->ring + (size_t)s * row + lo;
             if (more) /* the chunk after next */
-                for (int e = 0; e < HIST_CHUNK; e += 16) __builtin_prefetch(ps[i] + 2 * HIST_CHUNK + e, 0, 2);
+                for (int e = 0; e < HIST_CHUNK; e += 16)
+                    __builtin_prefetch(ps[i] + 2 * HIST_CHUNK + e, 0, 2);
             s = s + 1 == h->cap ? 0 : s + 1;
         }
         for (int g = g0; g < 3 && group[g] < HIST_TBLOCK; g++)
@@ -456,7 +458,8 @@ size_t history_bytes(const stf_history *h)
 {
     if (h->terms) return history_soe_bytes(h);
     return (size_t)h->n_alloc * ((size_t)h->cap * 3 * sizeof(float) + 3 * sizeof(double)) +
-           (size_t)h->cap * sizeof(double) + (h->wf ? (size_t)(h->cap + HIST_TBLOCK) * sizeof(float) : 0) +
+           (size_t)h->cap * sizeof(double) +
+           (h->wf ? (size_t)(h->cap + HIST_TBLOCK) * sizeof(float) : 0) +
            (size_t)h->n_old * 3 * HIST_TBLOCK * sizeof(double);
 }
 
