@@ -54,8 +54,8 @@ double history_scale(double q, double dt);
  * float products summed in short runs, about 1e-6; otherwise double, about d 1e-16). */
 double history_error_bound(const stf_history *h);
 /* The window's sums use the CPU's vector unit up to `level`: 2 AVX-512VL, 1 AVX2, 0 the plain
- * C code (all give the same bits); -1 leaves it. Default 2. Returns the level in use (the
- * highest the CPU has, at most `level`). */
+ * C code (all give the same bits); -1 leaves it. Process-wide, default 2 (tests compare the
+ * levels). Returns the level in use (the highest the CPU has, at most `level`). */
 int history_simd(int level);
 /* Reorders particles: new index i takes old index perm[i]. */
 int history_permute(stf_history *h, const int *perm, int n);
