@@ -2,6 +2,7 @@
 #include "history.h"
 
 #include <math.h>
+#include <omp.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -31,7 +32,7 @@ static void fill_weights(stf_history *h, int from)
 }
 
 /* Window mode, time blocks of HIST_TBLOCK samples (see derivative_blocked). */
-enum { HIST_TBLOCK = 16, HIST_CHUNK = 64 };
+enum { HIST_TBLOCK = 16, HIST_CHUNK = 64, HIST_RUN = 16, HIST_NEWER = 1536 };
 
 int history_init(stf_history *h, double q, int window, int n)
 {
@@ -40,10 +41,14 @@ int history_init(stf_history *h, double q, int window, int n)
     h->q = q;
     h->window = window;
     h->cap = window > 0 ? window + 1 : 64;
-    /* a window's weights are followed by HIST_TBLOCK zeros (old_chunk reads past lag d) */
-    h->w = calloc((size_t)h->cap + (window > 0 ? HIST_TBLOCK : 0), sizeof *h->w);
+    h->w = calloc((size_t)h->cap, sizeof *h->w);
     if (!h->w) return -1;
     fill_weights(h, 1);
+    if (window > 0) { /* followed by HIST_TBLOCK zeros (old_chunk reads past lag d) */
+        h->wf = calloc((size_t)h->cap + HIST_TBLOCK, sizeof *h->wf);
+        if (!h->wf) return -1;
+        for (int k = 0; k < h->cap; k++) h->wf[k] = (float)h->w[k];
+    }
     h->head = -1;
     return history_resize(h, n);
 }
@@ -56,6 +61,7 @@ void history_free(stf_history *h)
     free(h->soe_v0);
     free(h->ring);
     free(h->w);
+    free(h->wf);
     free(h->D);
     free(h->old);
     memset(h, 0, sizeof *h);
@@ -145,33 +151,179 @@ int history_push(stf_history *h, const double *v, int n)
  * old_j adds its terms in the order of the samples, oldest first, and a pass started in
  * the middle of a block (after a re-sort, a resize, a resume) adds the same terms in the same
  * order: the sums do not depend on when old was taken, nor on the threads. */
-/* old_j (j >= j0) for the elements [lo, lo + cnt) of the block, into old (stride apart):
- * the HIST_TBLOCK x cnt sums stay in L1 while the samples stream past, each converted once.
- * wx holds the weights padded with zeros past lag d (h->w, see history_init): a term past
- * the window adds +0 to a sum that is never -0, which leaves its bits as they were. */
-static STF_VECTOR_CLONES void old_chunk(const stf_history *h, const double *wx, int j0, int lo,
-                                        int cnt, double *old, size_t stride)
+/* old_j (j >= j0) for the elements [lo, lo + cnt) of the block, into old (stride apart).
+ * A product of a HIST_TBLOCK x d Toeplitz matrix of weights (w_{j+L}) by the d x cnt
+ * samples (v_{n0-L}), blocked as a matrix product: the HIST_TBLOCK x cnt sums c of a chunk
+ * stay in L1, and a micro-kernel (old_kernel) keeps OLD_JB x OLD_EB of them in registers
+ * while it runs over a run of HIST_RUN samples.
+ *
+ * Precision. The samples are float32 (the ring), and so are the products and their sums
+ * within a run: each run's float sum is then added, exactly converted, into the double c
+ * (float arithmetic does twice the multiply-adds per instruction; the sum is bound by them).
+ * Error of old_j against the same sum in exact arithmetic, with u = 2^-24 (float) and
+ * S = sum |w_k v_k| over its terms: the weight rounded to float (<= u), the product
+ * (<= u), the run's float sum of at most HIST_RUN products (<= (HIST_RUN - 1) u, the
+ * recursive summation bound), the double sums (about d 2^-53): at most
+ * (HIST_RUN + 1) u S + d 2^-53 S (1 + O(u)), i.e. 1.0e-6 S for runs of 16; in practice the
+ * roundings are of both signs and it stays near the float32 rounding the samples already
+ * carry (u S). tests/test_history.c checks that bound against Eq. 3 in double.
+ *
+ * Determinism. The runs are anchored on the lag (run r holds L in (16 r, 16 r + 16]), not
+ * on where the pass starts, and each sum adds its terms oldest first (in its run, then the
+ * runs into c), one rounded product and one rounded sum each, whatever the kernel, the
+ * chunks or the threads. A pass started in the middle of a block (j0 > 0) starts at an
+ * older lag L = d - j0 < d: the terms it leaves out have lags past d, weight 0 (wf holds
+ * HIST_TBLOCK zeros past lag d, see history_init), and they add +0 to a sum that is +0 so
+ * far (-0 + +0 is +0), which leaves every bit as in a pass from the block's start. */
+/* The kernel's sums: up to OLD_JB future samples x OLD_EB elements, in groups of j as many as
+ * the registers hold (AVX2: 16 registers, groups of 6, 6 and 4; AVX-512VL: 32, groups of 8;
+ * the plain C code: 8). */
+enum { OLD_JB = 8, OLD_EB = 16 };
+static const int old_group[3][4] = {{0, 8, 16, 16}, {0, 6, 12, 16}, {0, 8, 16, 16}}; /* by simd */
+
+/* c[j][e] (j < jb, rows HIST_CHUNK apart; e < OLD_EB) += the float sum over i < num of
+ * wl[j - i] * ps[i][e]: the samples of a run, oldest first. The plain C version. */
+static void old_kernel(const float *const *ps, int e0, int num, int jb, const float *wl,
+                       double *c)
+{
+    float a[OLD_JB][OLD_EB] = {{0}};
+    for (int i = 0; i < num; i++, wl--) {
+        const float *p = ps[i] + e0;
+        for (int j = 0; j < jb; j++)
+            for (int e = 0; e < OLD_EB; e++) a[j][e] += wl[j] * p[e];
+    }
+    for (int j = 0; j < jb; j++)
+        for (int e = 0; e < OLD_EB; e++) c[j * HIST_CHUNK + e] += (double)a[j][e];
+}
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#define HIST_X86 1
+/* The same with 256-bit vectors (chosen at run time, history_simd), jb a constant once
+ * inlined: 2 jb float sums of 8 lanes in registers, the weights broadcast. Multiply, then
+ * add (_mm256_mul_ps, _mm256_add_ps; no FMA), the run's sums then converted to double
+ * (exact) and added: the same roundings as the plain version. */
+__attribute__((target("avx2"), always_inline)) static inline void
+old_kernel_vec(const float *const *ps, int e0, int num, int jb, const float *wl, double *c)
+{
+    __m256 a[OLD_JB], b[OLD_JB];
+    for (int j = 0; j < jb; j++) a[j] = b[j] = _mm256_setzero_ps();
+    for (int i = 0; i < num; i++, wl--) {
+        const float *p = ps[i] + e0;
+        __m256 v = _mm256_loadu_ps(p), u = _mm256_loadu_ps(p + 8);
+        for (int j = 0; j < jb; j++) {
+            __m256 w = _mm256_broadcast_ss(wl + j);
+            a[j] = _mm256_add_ps(a[j], _mm256_mul_ps(w, v));
+            b[j] = _mm256_add_ps(b[j], _mm256_mul_ps(w, u));
+        }
+    }
+    for (int j = 0; j < jb; j++) {
+        double *cj = c + j * HIST_CHUNK;
+        __m128 lo[2] = {_mm256_castps256_ps128(a[j]), _mm256_castps256_ps128(b[j])};
+        __m128 hi[2] = {_mm256_extractf128_ps(a[j], 1), _mm256_extractf128_ps(b[j], 1)};
+        for (int k = 0; k < 2; k++) {
+            _mm256_storeu_pd(cj + 8 * k, _mm256_add_pd(_mm256_loadu_pd(cj + 8 * k),
+                                                       _mm256_cvtps_pd(lo[k])));
+            _mm256_storeu_pd(cj + 8 * k + 4, _mm256_add_pd(_mm256_loadu_pd(cj + 8 * k + 4),
+                                                           _mm256_cvtps_pd(hi[k])));
+        }
+    }
+}
+__attribute__((target("avx2"))) static void old_kernel_avx2_6(const float *const *ps, int e0,
+                                                              int num, const float *wl, double *c)
+{
+    old_kernel_vec(ps, e0, num, 6, wl, c);
+}
+__attribute__((target("avx2"))) static void old_kernel_avx2_4(const float *const *ps, int e0,
+                                                              int num, const float *wl, double *c)
+{
+    old_kernel_vec(ps, e0, num, 4, wl, c);
+}
+/* AVX-512VL: the same 256-bit code with 32 registers (wider vectors would not be faster on
+ * the AMD Zen 4 this was measured on, which splits them in two) */
+__attribute__((target("avx2,avx512f,avx512vl"))) static void
+old_kernel_avx512_8(const float *const *ps, int e0, int num, const float *wl, double *c)
+{
+    old_kernel_vec(ps, e0, num, 8, wl, c);
+}
+#endif
+
+/* One run of the samples into c for the future samples [jg, jg + jb), elements e0 ... */
+static void old_run(int simd, const float *const *ps, int e0, int num, int jb, const float *wl,
+                    double *c)
+{
+#ifdef HIST_X86
+    if (simd == 2) old_kernel_avx512_8(ps, e0, num, wl, c);
+    else if (simd == 1 && jb == 6) old_kernel_avx2_6(ps, e0, num, wl, c);
+    else if (simd == 1) old_kernel_avx2_4(ps, e0, num, wl, c);
+    else
+#endif
+        old_kernel(ps, e0, num, jb, wl, c);
+}
+
+static int simd_wanted = 2;
+
+int history_simd(int level)
+{
+    if (level >= 0) simd_wanted = level;
+    int have = 0;
+#ifdef HIST_X86
+    have = __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512f") ? 2
+           : __builtin_cpu_supports("avx2")                                      ? 1
+                                                                                 : 0;
+#endif
+    return simd_wanted < have ? simd_wanted : have;
+}
+
+double history_error_bound(const stf_history *h)
+{
+    /* gamma_k = k u / (1 - k u): k roundings of unit roundoff u (Higham, Accuracy and
+       Stability of Numerical Algorithms, 3.1). The double sums: at most cap + 1 roundings on
+       any term (one product, the additions after it). */
+    double ud = 0x1p-53, uf = 0x1p-24, m = h->cap + 1.0;
+    double dbl = m * ud / (1.0 - m * ud);
+    if (h->terms || h->window <= HIST_TBLOCK || h->pushed - 1 < h->cap) return dbl;
+    double k = HIST_RUN + 1.0, flt = k * uf / (1.0 - k * uf); /* see old_chunk */
+    return flt + dbl * (1.0 + flt);
+}
+
+/* more: the same thread takes the chunk after next (its samples are prefetched into L2
+ * while this one is summed: a chunk's 4 lines of a slot are 12 n bytes from the next slot's,
+ * too far apart for the hardware prefetcher; one chunk ahead is too late). The kernel reads
+ * up to OLD_EB - 1 floats past cnt, inside the ring's row (3 n_alloc >= 3 n + 48), and their
+ * sums are not stored. */
+static void old_chunk(const stf_history *h, int simd, int j0, int lo, int cnt, int more,
+                      double *old, size_t stride)
 {
     int d = h->cap - 1;
     size_t row = (size_t)h->n_alloc * 3;
-    double a[HIST_TBLOCK][HIST_CHUNK], v[HIST_CHUNK];
-    for (int j = 0; j < HIST_TBLOCK; j++)
-        for (int e = 0; e < HIST_CHUNK; e++) a[j][e] = 0.0;
-    for (int e = cnt; e < HIST_CHUNK; e++) v[e] = 0.0;
-    /* samples n0 - L, L = d - j0 .. 1, oldest first; lag from sample n0 + j: j + L */
-    for (int L = d - j0; L >= 1; L--) {
-        int s = h->head - j0 - L;
-        if (s < 0) s += h->cap;
-        const float *r = h->ring + (size_t)s * row + lo;
-        for (int e = 0; e < cnt; e++) v[e] = r[e];
-        const double *wl = wx + L;
-        for (int j = 0; j < HIST_TBLOCK; j++) {
-            double wk = wl[j];
-            for (int e = 0; e < HIST_CHUNK; e++) a[j][e] += wk * v[e];
+    double c[HIST_TBLOCK][HIST_CHUNK];
+    const int *group = old_group[simd];
+    int g0 = 0; /* the groups with a j >= j0 */
+    while (group[g0 + 1] <= j0) g0++;
+    for (int j = group[g0]; j < HIST_TBLOCK; j++)
+        for (int e = 0; e < HIST_CHUNK; e++) c[j][e] = 0.0;
+    /* samples n0 - L, L = d - j0 .. 1, oldest first (the oldest is in slot head + 1), in runs
+       of lags (16 r, 16 r + 16]; lag from sample n0 + j: j + L */
+    int s = h->head + 1 == h->cap ? 0 : h->head + 1;
+    for (int L = d - j0; L >= 1;) {
+        int num = (L - 1) % HIST_RUN + 1;
+        const float *ps[HIST_RUN];
+        for (int i = 0; i < num; i++) {
+            ps[i] = h->ring + (size_t)s * row + lo;
+            if (more) /* the chunk after next */
+                for (int e = 0; e < HIST_CHUNK; e += 16)
+                    __builtin_prefetch(ps[i] + 2 * HIST_CHUNK + e, 0, 2);
+            s = s + 1 == h->cap ? 0 : s + 1;
         }
+        for (int g = g0; g < 3 && group[g] < HIST_TBLOCK; g++)
+            for (int e = 0; e < cnt; e += OLD_EB)
+                old_run(simd, ps, e, num, group[g + 1] - group[g], h->wf + L + group[g],
+                        &c[group[g]][e]);
+        L -= num;
     }
     for (int j = j0; j < HIST_TBLOCK; j++)
-        memcpy(old + (size_t)j * stride + lo, a[j], (size_t)cnt * sizeof(double));
+        memcpy(old + (size_t)j * stride + lo, c[j], (size_t)cnt * sizeof(double));
 }
 
 /* old_j for j in [j0, HIST_TBLOCK) of the block starting at sample n0 (= newest - j0). */
@@ -185,14 +337,31 @@ static int fill_old(stf_history *h, long n0, int j0, int n)
         if (!h->old) return -1;
     }
     size_t stride = (size_t)h->n_old * 3;
-    int nchunks = (len + HIST_CHUNK - 1) / HIST_CHUNK;
+    int nchunks = (len + HIST_CHUNK - 1) / HIST_CHUNK, simd = history_simd(-1);
 #pragma omp parallel for schedule(static)
     for (int c = 0; c < nchunks; c++) {
         int lo = c * HIST_CHUNK, cnt = len - lo < HIST_CHUNK ? len - lo : HIST_CHUNK;
-        old_chunk(h, h->w, j0, lo, cnt, h->old, stride);
+        old_chunk(h, simd, j0, lo, cnt, c + 2 < nchunks, h->old, stride);
     }
     h->old_n0 = n0;
     return 0;
+}
+
+/* D = old_j + sum_{k=j..0} w_k v_{t-k} for the elements [lo, lo + cnt): the block's own
+ * samples, oldest first, streamed slot by slot while the sums stay in L1. */
+static STF_VECTOR_CLONES void newer_part(const stf_history *h, int j, const double *old, int lo,
+                                         int cnt, double *D)
+{
+    size_t row = (size_t)h->n_alloc * 3;
+    double *restrict acc = D + lo; /* in L1 while the samples stream past */
+    for (int e = 0; e < cnt; e++) acc[e] = old[lo + e];
+    for (int k = j; k >= 0; k--) {
+        int s = h->head - k;
+        if (s < 0) s += h->cap;
+        const float *r = h->ring + (size_t)s * row + lo;
+        double wk = h->w[k];
+        for (int e = 0; e < cnt; e++) acc[e] += wk * r[e];
+    }
 }
 
 static int derivative_blocked(stf_history *h, int n)
@@ -202,23 +371,12 @@ static int derivative_blocked(stf_history *h, int n)
     if (h->old_n0 != n0 || h->n_old < n) {
         if (fill_old(h, n0, j, n) != 0) return -1;
     }
-    size_t stride = (size_t)h->n_old * 3, row = (size_t)h->n_alloc * 3;
-    int len = 3 * n;
-    const double *w = h->w, *old = h->old + (size_t)j * stride;
-    int nchunks = (len + HIST_CHUNK - 1) / HIST_CHUNK;
+    int len = 3 * n, nblocks = (len + HIST_NEWER - 1) / HIST_NEWER;
+    const double *old = h->old + (size_t)j * (size_t)h->n_old * 3;
 #pragma omp parallel for schedule(static)
-    for (int c = 0; c < nchunks; c++) {
-        int lo = c * HIST_CHUNK, cnt = len - lo < HIST_CHUNK ? len - lo : HIST_CHUNK;
-        double acc[HIST_CHUNK];
-        for (int e = 0; e < cnt; e++) acc[e] = old[lo + e];
-        for (int k = j; k >= 0; k--) { /* the block's samples, oldest first */
-            int s = h->head - k;
-            if (s < 0) s += h->cap;
-            const float *r = h->ring + (size_t)s * row + lo;
-            double wk = w[k];
-            for (int e = 0; e < cnt; e++) acc[e] += wk * r[e];
-        }
-        memcpy(h->D + lo, acc, (size_t)cnt * sizeof *acc);
+    for (int b = 0; b < nblocks; b++) {
+        int lo = b * HIST_NEWER, cnt = len - lo < HIST_NEWER ? len - lo : HIST_NEWER;
+        newer_part(h, j, old, lo, cnt, h->D);
     }
     return 0;
 }
@@ -304,6 +462,7 @@ size_t history_bytes(const stf_history *h)
     if (h->terms) return history_soe_bytes(h);
     return (size_t)h->n_alloc * ((size_t)h->cap * 3 * sizeof(float) + 3 * sizeof(double)) +
            (size_t)h->cap * sizeof(double) +
+           (h->wf ? (size_t)(h->cap + HIST_TBLOCK) * sizeof(float) : 0) +
            (size_t)h->n_old * 3 * HIST_TBLOCK * sizeof(double);
 }
 

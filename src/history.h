@@ -18,8 +18,8 @@ typedef struct stf_history {
     float *ring;  /* cap slots of 3 n_alloc velocities (slot-major) */
     long pushed;  /* samples pushed since the start */
     int head;     /* slot of the newest sample */
-    double *w;    /* cap interior weights by lag: w[0] = 1, w[k] = a_{n-k,n} for 0 < k < n
-                     (window mode: then HIST_TBLOCK zeros, history.c) */
+    double *w;    /* cap interior weights by lag: w[0] = 1, w[k] = a_{n-k,n} for 0 < k < n */
+    float *wf;    /* window mode: w rounded to float32, then HIST_TBLOCK zeros (history.c) */
     double *D;    /* 3 n: sum_p a_{p,n} v_p (m/s), without the dt^(1-q)/Gamma(3-q) factor */
     /* window mode, time blocks (history.c, history_derivative): the parts of the next
      * HIST_TBLOCK sums that come from samples older than the block, taken in one pass over
@@ -49,6 +49,14 @@ int history_push(stf_history *h, const double *v, int n);
 void history_derivative(stf_history *h, int n);
 /* dt^(1-q) / Gamma(3-q): the factor that turns D into D^q x (m/s^q). */
 double history_scale(double q, double dt);
+/* A bound on |D - sum_p a_{p,n} v_p| / sum_p |a_{p,n} v_p| for the samples as stored (float32),
+ * for the latest history_derivative: the roundings of the sum (window mode in steady state:
+ * float products summed in short runs, about 1e-6; otherwise double, about d 1e-16). */
+double history_error_bound(const stf_history *h);
+/* The window's sums use the CPU's vector unit up to `level`: 2 AVX-512VL, 1 AVX2, 0 the plain
+ * C code (all give the same bits); -1 leaves it. Process-wide, default 2 (tests compare the
+ * levels). Returns the level in use (the highest the CPU has, at most `level`). */
+int history_simd(int level);
 /* Reorders particles: new index i takes old index perm[i]. */
 int history_permute(stf_history *h, const int *perm, int n);
 size_t history_bytes(const stf_history *h);
