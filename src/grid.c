@@ -16,7 +16,15 @@ static uint32_t cell_hash(int64_t ix, int64_t iy, int64_t iz)
     return ((uint32_t)ix * 73856093u) ^ ((uint32_t)iy * 19349663u) ^ ((uint32_t)iz * 83492791u);
 }
 
-static int64_t cell_of(double x, double inv) { return (int64_t)floor(x * inv); }
+/* floor(x inv) as an integer, without a call to floor (gcc calls libm for it on baseline
+ * x86-64): truncate, then step down for negative non-integers. Positions are far inside the
+ * int64 range. */
+static int64_t cell_of(double x, double inv)
+{
+    double u = x * inv;
+    int64_t c = (int64_t)u;
+    return c - (u < (double)c);
+}
 
 static int periodic(const stf_grid *g) { return g->period[0] > 0 || g->period[1] > 0 || g->period[2] > 0; }
 
@@ -397,8 +405,8 @@ static int relative_moves_ok(stf_grid *g, const double *x, int n, double lim)
             int i = g->order[k];
             for (int a = 0; a < 3; a++) {
                 double d = x[3 * i + a] - g->xref[3 * i + a];
-                bb[a] = fmin(bb[a], d);
-                bb[3 + a] = fmax(bb[3 + a], d);
+                bb[a] = d < bb[a] ? d : bb[a];
+                bb[3 + a] = d > bb[3 + a] ? d : bb[3 + a];
             }
         }
     }
@@ -426,7 +434,9 @@ static int relative_moves_ok(stf_grid *g, const double *x, int n, double lim)
                         const double *o = g->box + 6 * (size_t)b;
                         double w2 = 0;
                         for (int a = 0; a < 3; a++) {
-                            double w = fmax(mine[3 + a], o[3 + a]) - fmin(mine[a], o[a]);
+                            double hi = mine[3 + a] > o[3 + a] ? mine[3 + a] : o[3 + a];
+                            double lo = mine[a] < o[a] ? mine[a] : o[a];
+                            double w = hi - lo;
                             w2 += w * w;
                         }
                         ok &= w2 <= lim2;
