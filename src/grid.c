@@ -368,16 +368,52 @@ static int filter_one(stf_grid *g, const double *x, int i, double h2)
 {
     const int32_t *c = g->cand + g->off[i];
     int32_t *out = g->nbr + g->off[i];
-    int cnt = 0;
-    for (int k = 0; k < g->ccount[i]; k++) {
+    int cnt = 0, m = g->ccount[i]; /* locals: the stores to out could alias ccount */
+    double xi = x[3 * i], yi = x[3 * i + 1], zi = x[3 * i + 2];
+    for (int k = 0; k < m; k++) {
         int j = c[k];
-        double rx = x[3 * j] - x[3 * i], ry = x[3 * j + 1] - x[3 * i + 1],
-               rz = x[3 * j + 2] - x[3 * i + 2];
+        double rx = x[3 * j] - xi, ry = x[3 * j + 1] - yi, rz = x[3 * j + 2] - zi;
         out[cnt] = j; /* branch-free: half the candidates are kept, unpredictably */
         cnt += rx * rx + ry * ry + rz * rz < h2;
     }
     return cnt;
 }
+
+#ifdef HAVE_AVX2_PATH
+/* filter_one four candidates at a time: their positions loaded one by one (a hardware gather
+ * is slower here), the distances and the packing of the hits as in find_candidates_avx2.
+ * Writes up to three entries past the list's end, which out has room for (tmp). */
+__attribute__((target("avx2"))) static int filter_one_avx2(stf_grid *g, const double *x, int i,
+                                                           double h2, int32_t *out)
+{
+    const int32_t *c = g->cand + g->off[i];
+    int m = g->ccount[i], cnt = 0, k = 0;
+    __m256d px = _mm256_set1_pd(x[3 * i]), py = _mm256_set1_pd(x[3 * i + 1]),
+            pz = _mm256_set1_pd(x[3 * i + 2]), lim = _mm256_set1_pd(h2);
+    for (; k + 4 <= m; k += 4) {
+        const double *a = x + 3 * c[k], *b = x + 3 * c[k + 1], *e = x + 3 * c[k + 2],
+                     *f = x + 3 * c[k + 3];
+        __m256d rx = _mm256_sub_pd(_mm256_set_pd(f[0], e[0], b[0], a[0]), px);
+        __m256d ry = _mm256_sub_pd(_mm256_set_pd(f[1], e[1], b[1], a[1]), py);
+        __m256d rz = _mm256_sub_pd(_mm256_set_pd(f[2], e[2], b[2], a[2]), pz);
+        __m256d d2 = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(rx, rx), _mm256_mul_pd(ry, ry)),
+                                   _mm256_mul_pd(rz, rz));
+        int near = _mm256_movemask_pd(_mm256_cmp_pd(d2, lim, _CMP_LT_OQ));
+        __m128i j = _mm_loadu_si128((const __m128i *)(c + k));
+        __m128i ctl = _mm_loadu_si128((const __m128i *)compress4[near]);
+        _mm_storeu_si128((__m128i *)(out + cnt), _mm_shuffle_epi8(j, ctl));
+        cnt += __builtin_popcount((unsigned)near);
+    }
+    double xi = x[3 * i], yi = x[3 * i + 1], zi = x[3 * i + 2];
+    for (; k < m; k++) {
+        int j = c[k];
+        double rx = x[3 * j] - xi, ry = x[3 * j + 1] - yi, rz = x[3 * j + 2] - zi;
+        out[cnt] = j;
+        cnt += rx * rx + ry * ry + rz * rz < h2;
+    }
+    return cnt;
+}
+#endif
 
 /* 1 when every two particles that may be closer than h now moved less than lim relative to
  * each other since the rebuild: the particles are bucketed by their current cells (of size
@@ -579,6 +615,24 @@ int grid_build(stf_grid *g, const double *x, int n, double h)
     g->builds++;
     if (periodic(g)) return build_periodic(g, x, n, h);
     if (grid_due(g, x, n, h) && rebuild(g, x, n, h) != 0) return -1;
+#ifdef HAVE_AVX2_PATH
+    if (!g->plain && __builtin_cpu_supports("avx2")) {
+#pragma omp parallel
+        {
+            int32_t tmp[4096];
+#pragma omp for schedule(static)
+            for (int i = 0; i < n; i++) {
+                if (g->ccount[i] + 4 > 4096) {
+                    g->count[i] = filter_one(g, x, i, h * h);
+                    continue;
+                }
+                g->count[i] = filter_one_avx2(g, x, i, h * h, tmp);
+                memcpy(g->nbr + g->off[i], tmp, (size_t)g->count[i] * sizeof *tmp);
+            }
+        }
+        return 0;
+    }
+#endif
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) g->count[i] = filter_one(g, x, i, h * h);
     return 0;
