@@ -324,7 +324,7 @@ static int rebuild(stf_grid *g, const double *x, int n, double h)
                 grow_i32(&g->nbr, &g->nbr_cap, g->off[n]) != 0)
                 failed = 1;
         } /* implied barrier */
-        if (!failed && hi > lo) memcpy(g->cand + g->off[lo], *buf, len * sizeof **buf);
+        if (!failed && len > 0) memcpy(g->cand + g->off[lo], *buf, len * sizeof **buf);
     }
     if (failed) return -1;
     memcpy(g->xref, x, (size_t)n * 3 * sizeof *x);
@@ -627,7 +627,8 @@ int grid_build(stf_grid *g, const double *x, int n, double h)
                     continue;
                 }
                 g->count[i] = filter_one_avx2(g, x, i, h * h, tmp);
-                memcpy(g->nbr + g->off[i], tmp, (size_t)g->count[i] * sizeof *tmp);
+                if (g->count[i] > 0)
+                    memcpy(g->nbr + g->off[i], tmp, (size_t)g->count[i] * sizeof *tmp);
             }
         }
         return 0;
