@@ -53,7 +53,7 @@ static double wrap_delta(const stf_grid *g, double d, int a)
 
 static int ensure_particles(stf_grid *g, int n)
 {
-    if (n <= g->n_alloc) return 0;
+    if (n <= g->n_alloc && g->off) return 0; /* off (n + 1) is written even for n = 0 */
     int cap = n + n / 4 + 16;
     uint32_t *key = realloc(g->key, (size_t)cap * sizeof *key);
     if (!key) return -1;
@@ -327,7 +327,7 @@ static int rebuild(stf_grid *g, const double *x, int n, double h)
         if (!failed && len > 0) memcpy(g->cand + g->off[lo], *buf, len * sizeof **buf);
     }
     if (failed) return -1;
-    memcpy(g->xref, x, (size_t)n * 3 * sizeof *x);
+    if (n > 0) memcpy(g->xref, x, (size_t)n * 3 * sizeof *x); /* x may be NULL for n = 0 */
     g->nref = n;
     g->href = h;
     g->valid = 1;

@@ -221,8 +221,24 @@ static void test_periodic(void)
     free(x);
 }
 
+/* No particles (an empty fluid, or every particle removed): a fresh grid builds, and
+ * grows to particles after. */
+static void test_empty(void)
+{
+    const double h = 0.1, none[3] = {0, 0, 0};
+    stf_grid g = {0};
+    CHECK(grid_build(&g, NULL, 0, h) == 0, "build of no particles");
+    CHECK(grid_due(&g, NULL, 0, h) == 0, "no particles, nothing moved: due");
+    CHECK(grid_build(&g, NULL, 0, h) == 0, "second build of no particles");
+    double x[6] = {0.0, 0.0, 0.0, 0.05, 0.0, 0.0};
+    CHECK(grid_build(&g, x, 2, h) == 0, "build");
+    CHECK(wrong_rows(&g, x, 2, h, none) == 0, "two particles after none");
+    grid_free(&g);
+}
+
 int main(void)
 {
+    test_empty();
     test_verlet();
     test_two_cells();
     test_threads_and_paths();
