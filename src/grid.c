@@ -263,6 +263,7 @@ static int grow_i32(int32_t **p, size_t *cap, size_t need)
  * (row i at off[i], ccount[i] long), and the neighbour rows get the same offsets. */
 static int rebuild(stf_grid *g, const double *x, int n, double h)
 {
+    g->valid = 0; /* until it succeeds: a failure leaves ccount, off and cand half new */
     g->skin_used = g->skin > 0 ? g->skin : SKIN;
     double rc = h * (1.0 + g->skin_used);
     g->cell = rc;

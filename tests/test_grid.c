@@ -5,6 +5,8 @@
 #include "test_util.h"
 
 #include <omp.h>
+#include <stdio.h>
+#include <sys/resource.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -236,6 +238,41 @@ static void test_empty(void)
     grid_free(&g);
 }
 
+/* A restore that runs out of memory (the address space capped with setrlimit: a real
+ * allocation failure) into a grid in use: it reports -1, and the next build must not reuse
+ * the half-overwritten candidate lists as if they were still those of the last rebuild. Not
+ * under ASan (its shadow memory does not fit under the cap). */
+static void test_restore_out_of_memory(void)
+{
+#if !defined(__SANITIZE_ADDRESS__)
+    const int n = 4000;
+    const double h = 0.05, none[3] = {0, 0, 0};
+    double *x = cloud(n, h), *dense = malloc((size_t)n * 3 * sizeof *dense);
+    for (int i = 0; i < n; i++) dense[3 * i] = dense[3 * i + 1] = dense[3 * i + 2] = 0.3;
+    stf_grid g = {0};
+    CHECK(grid_build(&g, x, n, h) == 0, "build");
+    long pages = 0;
+    FILE *f = fopen("/proc/self/statm", "r");
+    if (f && fscanf(f, "%ld", &pages) == 1) {
+        struct rlimit old, cap;
+        getrlimit(RLIMIT_AS, &old);
+        cap = old;
+        cap.rlim_cur = (rlim_t)pages * 4096 + (32u << 20); /* n^2 candidates need 64 MB */
+        if (cap.rlim_cur < old.rlim_cur && setrlimit(RLIMIT_AS, &cap) == 0) {
+            int rc = grid_restore(&g, dense, n, h, 0.25);
+            setrlimit(RLIMIT_AS, &old);
+            CHECK(rc == -1, "restoring 16 M candidates under a 32 MB cap succeeded");
+            CHECK(grid_build(&g, x, n, h) == 0, "build after the failed restore");
+            CHECK(wrong_rows(&g, x, n, h, none) == 0, "rows after a failed restore");
+        }
+    }
+    if (f) fclose(f);
+    grid_free(&g);
+    free(dense);
+    free(x);
+#endif
+}
+
 int main(void)
 {
     test_empty();
@@ -244,5 +281,6 @@ int main(void)
     test_threads_and_paths();
     test_sort();
     test_periodic();
+    test_restore_out_of_memory();
     return test_result("test_grid");
 }
