@@ -483,11 +483,11 @@ int stf_fluid_step(stf_fluid *f, double dt)
         /* Particles are re-sorted by cell (memory locality) when the neighbour candidates
            are rebuilt anyway, at most every reorder_interval steps: particles that stay put
            stay in order and keep their candidate lists. */
-        if (f->steps >= f->next_reorder && grid_due(&f->grid, f->x, n, f->h)) {
+        if (grid_due(&f->grid, f->x, n, f->h) && f->steps >= f->next_reorder) {
             if (grid_sort(&f->grid, f->x, n, f->h) != 0 || reorder_by_cell(f) != 0) goto oom;
             f->next_reorder = f->steps + f->reorder_interval;
         }
-        if (grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
+        if (grid_build_checked(&f->grid, f->x, n, f->h) != 0) goto oom; /* moves checked once */
     });
     if (has(f, STF_EFFECT_HISTORY) && f->def.k_hist > 0) { /* k_hist = 0: D is never read */
         TIMED(STAGE_HISTORY, {

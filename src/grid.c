@@ -612,10 +612,16 @@ static int build_periodic(stf_grid *g, const double *x, int n, double h)
 
 int grid_build(stf_grid *g, const double *x, int n, double h)
 {
+    if (!periodic(g)) grid_due(g, x, n, h);
+    return grid_build_checked(g, x, n, h);
+}
+
+int grid_build_checked(stf_grid *g, const double *x, int n, double h)
+{
     if (ensure_particles(g, n) != 0) return -1;
     g->builds++;
     if (periodic(g)) return build_periodic(g, x, n, h);
-    if (grid_due(g, x, n, h) && rebuild(g, x, n, h) != 0) return -1;
+    if (!g->valid && rebuild(g, x, n, h) != 0) return -1;
 #ifdef HAVE_AVX2_PATH
     if (!g->plain && __builtin_cpu_supports("avx2")) {
 #pragma omp parallel

@@ -57,6 +57,9 @@ typedef struct stf_grid {
 /* Rebuilds buckets and neighbour lists for n particles at x (3n) with radius h.
  * Returns 0, or -1 when out of memory. */
 int grid_build(stf_grid *g, const double *x, int n, double h);
+/* grid_build for a caller that has just asked grid_due about these same positions (count, h):
+ * rebuilds the candidates only if they are invalid, without checking the moves again. */
+int grid_build_checked(stf_grid *g, const double *x, int n, double h);
 /* 1 when the next grid_build will rebuild the candidates (two particles that may be closer
  * than h moved more than the skin relative to each other, the count or h changed, or they
  * were invalidated). */
