@@ -51,6 +51,8 @@ awk '!/^#/ && $1 ~ /^[0-9]/ { rows++; if (!($3 > $4 && $4 > 0)) bad = 1; nb[rows
 [ $? -eq 2 ] || fail "table1 with a missing scene: want exit 2"
 "$STF" bench nope >/dev/null 2>&1
 [ $? -eq 2 ] || fail "unknown benchmark: want exit 2"
+"$STF" bench scaling "$SCENE" --repeat 0 >/dev/null 2>rep.err
+[ $? -eq 2 ] && grep -q -- "--repeat" rep.err || fail "scaling --repeat 0: want exit 2 naming --repeat"
 # the soe history's parameter: only with mode soe, and in [1, 64]
 "$STF" run "$SCENE" -o bad.h5 --set effects.history.terms=8 --duration 0.001 2>bad1.err
 [ $? -eq 2 ] && grep -q "effects.history.terms: only with mode: soe" bad1.err || fail "terms without soe"
