@@ -198,26 +198,26 @@ fi
 
 # --- container.periodic (scenes/cy_film_flow.yaml): axes, model, motion, period, bodies ---
 FILM="$PROJ/scenes/cy_film_flow.yaml"
-sed 's/^  periodic: \[x, y\]/  periodic: [x, z]/' "$FILM" >per_z.yaml
-L=$(line_of per_z.yaml '^  periodic:')
-expect_bad per_z "per_z\\.yaml:$L:[0-9]+: container\\.periodic\\.1: expected an axis \\(allowed: x, y" -- \
-    "$STF" run per_z.yaml -o out.h5 --quiet
-sed 's/^  periodic: \[x, y\]/  periodic: [x, x]/' "$FILM" >per_twice.yaml
-expect_bad per_twice "per_twice\\.yaml:$L:[0-9]+: container\\.periodic\\.1: axis x given twice" -- \
-    "$STF" run per_twice.yaml -o out.h5 --quiet
-sed 's/^  periodic: \[x, y\]/  periodic: x/' "$FILM" >per_scalar.yaml
-expect_bad per_scalar "per_scalar\\.yaml:$L:[0-9]+: container\\.periodic: expected a list of axes" -- \
-    "$STF" run per_scalar.yaml -o out.h5 --quiet
-sed 's/^  size: \[0.08, 0.06, 0.2\].*/  size: [0.08, 0.05, 0.2]/' "$FILM" >per_short.yaml
-expect_bad per_short "per_short\\.yaml:$L:[0-9]+: container\\.periodic: the period along y .* must be >= 3 h = 0\\.06 m" -- \
-    "$STF" run per_short.yaml -o out.h5 --quiet
-sed 's/^  periodic: \[x, y\]/  periodic: [x]\n  motion: kinematic/' "$FILM" >per_moving.yaml
-expect_bad per_moving "per_moving\\.yaml:$L:3: container\\.periodic: only with a static container" -- \
-    "$STF" run per_moving.yaml -o out.h5 --quiet
-sed 's/^  friction: 0.2/  friction: 0.2\n  periodic: [x]/' "$BASE" >per_clavet.yaml
-L=$(line_of per_clavet.yaml '^  periodic:')
-expect_bad per_clavet "per_clavet\\.yaml:$L:3: container\\.periodic: only with fluid\\.model: carreau_yasuda" -- \
-    "$STF" run per_clavet.yaml -o out.h5 --quiet
+# bad_periodic NAME SCENE SED_EXPR REST: SCENE edited by SED_EXPR into NAME.yaml must be
+# refused at its container.periodic line, the message matching REST after "LINE:".
+bad_periodic() {
+    sed "$3" "$2" >"$1.yaml"
+    local line
+    line=$(line_of "$1.yaml" '^  periodic:')
+    expect_bad "$1" "$1\\.yaml:$line:$4" -- "$STF" run "$1.yaml" -o out.h5 --quiet
+}
+bad_periodic per_z "$FILM" 's/^  periodic: \[x, y\]/  periodic: [x, z]/' \
+    "[0-9]+: container\\.periodic\\.1: expected an axis \\(allowed: x, y"
+bad_periodic per_twice "$FILM" 's/^  periodic: \[x, y\]/  periodic: [x, x]/' \
+    "[0-9]+: container\\.periodic\\.1: axis x given twice"
+bad_periodic per_scalar "$FILM" 's/^  periodic: \[x, y\]/  periodic: x/' \
+    "[0-9]+: container\\.periodic: expected a list of axes"
+bad_periodic per_short "$FILM" 's/^  size: \[0.08, 0.06, 0.2\].*/  size: [0.08, 0.05, 0.2]/' \
+    "[0-9]+: container\\.periodic: the period along y .* must be >= 3 h = 0\\.06 m"
+bad_periodic per_moving "$FILM" 's/^  periodic: \[x, y\]/  periodic: [x]\n  motion: kinematic/' \
+    "3: container\\.periodic: only with a static container"
+bad_periodic per_clavet "$BASE" 's/^  friction: 0.2/  friction: 0.2\n  periodic: [x]/' \
+    "3: container\\.periodic: only with fluid\\.model: carreau_yasuda"
 { cat "$FILM"; printf 'bodies:\n  - {name: lid, shape: box, size: [0.02, 0.02, 0.02], mass: 0.01, position: [0, 0, 0.15]}\n'; } >per_body.yaml
 L=$(line_of per_body.yaml '^bodies:')
 expect_bad per_body "per_body\\.yaml:$L:1: bodies: not with container\\.periodic" -- \
