@@ -215,6 +215,20 @@ static const uint8_t compress4[16][16] = {
 #undef Z
 };
 
+/* Of four entries j at offsets (rx, ry, rz), those closer than sqrt(lim) and not masked out
+ * by `skip` (a 4-bit mask), packed in order to out: stores all four lanes, returns how many
+ * count. No FMA: the same rounding as the plain loops. */
+__attribute__((target("avx2"), always_inline)) static inline int
+pack_near4(int32_t *out, __m128i j, __m256d rx, __m256d ry, __m256d rz, __m256d lim, int skip)
+{
+    __m256d d2 = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(rx, rx), _mm256_mul_pd(ry, ry)),
+                               _mm256_mul_pd(rz, rz));
+    int near = _mm256_movemask_pd(_mm256_cmp_pd(d2, lim, _CMP_LT_OQ)) & ~skip;
+    __m128i ctl = _mm_loadu_si128((const __m128i *)compress4[near]);
+    _mm_storeu_si128((__m128i *)out, _mm_shuffle_epi8(j, ctl));
+    return __builtin_popcount((unsigned)near);
+}
+
 /* find_candidates four entries at a time with no branch: the hits of each four are packed
  * to the front of a vector and stored at the end of the list so far (out has room for the
  * whole run plus four), the same list in the same order. Hand-written because it was
@@ -232,15 +246,9 @@ __attribute__((target("avx2"))) static int find_candidates_avx2(const double *x,
         __m256d rx = _mm256_sub_pd(_mm256_loadu_pd(r->x + m), px);
         __m256d ry = _mm256_sub_pd(_mm256_loadu_pd(r->y + m), py);
         __m256d rz = _mm256_sub_pd(_mm256_loadu_pd(r->z + m), pz);
-        /* no FMA: the same rounding as find_candidates */
-        __m256d d2 = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(rx, rx), _mm256_mul_pd(ry, ry)),
-                                   _mm256_mul_pd(rz, rz));
         __m128i j = _mm_loadu_si128((const __m128i *)(r->j + m));
-        int near = _mm256_movemask_pd(_mm256_cmp_pd(d2, lim, _CMP_LT_OQ));
-        near &= ~_mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(j, self)));
-        __m128i ctl = _mm_loadu_si128((const __m128i *)compress4[near]);
-        _mm_storeu_si128((__m128i *)(out + cnt), _mm_shuffle_epi8(j, ctl));
-        cnt += __builtin_popcount((unsigned)near);
+        int self_lane = _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(j, self)));
+        cnt += pack_near4(out + cnt, j, rx, ry, rz, lim, self_lane);
     }
     return cnt;
 }
@@ -383,11 +391,13 @@ static int filter_one(stf_grid *g, const double *x, int i, double h2)
 #ifdef HAVE_AVX2_PATH
 /* filter_one four candidates at a time: their positions loaded one by one (a hardware gather
  * is slower here), the distances and the packing of the hits as in find_candidates_avx2.
- * Writes up to three entries past the list's end, which out has room for (tmp). */
+ * Its 4-wide stores stay inside the row: four candidates k..k+3 write at most to cnt + 3 <=
+ * k + 3, a slot of the row. */
 __attribute__((target("avx2"))) static int filter_one_avx2(stf_grid *g, const double *x, int i,
-                                                           double h2, int32_t *out)
+                                                           double h2)
 {
     const int32_t *c = g->cand + g->off[i];
+    int32_t *out = g->nbr + g->off[i];
     int m = g->ccount[i], cnt = 0, k = 0;
     __m256d px = _mm256_set1_pd(x[3 * i]), py = _mm256_set1_pd(x[3 * i + 1]),
             pz = _mm256_set1_pd(x[3 * i + 2]), lim = _mm256_set1_pd(h2);
@@ -397,13 +407,7 @@ __attribute__((target("avx2"))) static int filter_one_avx2(stf_grid *g, const do
         __m256d rx = _mm256_sub_pd(_mm256_set_pd(f[0], e[0], b[0], a[0]), px);
         __m256d ry = _mm256_sub_pd(_mm256_set_pd(f[1], e[1], b[1], a[1]), py);
         __m256d rz = _mm256_sub_pd(_mm256_set_pd(f[2], e[2], b[2], a[2]), pz);
-        __m256d d2 = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(rx, rx), _mm256_mul_pd(ry, ry)),
-                                   _mm256_mul_pd(rz, rz));
-        int near = _mm256_movemask_pd(_mm256_cmp_pd(d2, lim, _CMP_LT_OQ));
-        __m128i j = _mm_loadu_si128((const __m128i *)(c + k));
-        __m128i ctl = _mm_loadu_si128((const __m128i *)compress4[near]);
-        _mm_storeu_si128((__m128i *)(out + cnt), _mm_shuffle_epi8(j, ctl));
-        cnt += __builtin_popcount((unsigned)near);
+        cnt += pack_near4(out + cnt, _mm_loadu_si128((const __m128i *)(c + k)), rx, ry, rz, lim, 0);
     }
     double xi = x[3 * i], yi = x[3 * i + 1], zi = x[3 * i + 2];
     for (; k < m; k++) {
@@ -624,20 +628,8 @@ int grid_build_checked(stf_grid *g, const double *x, int n, double h)
     if (!g->valid && rebuild(g, x, n, h) != 0) return -1;
 #ifdef HAVE_AVX2_PATH
     if (!g->plain && __builtin_cpu_supports("avx2")) {
-#pragma omp parallel
-        {
-            int32_t tmp[4096];
-#pragma omp for schedule(static)
-            for (int i = 0; i < n; i++) {
-                if (g->ccount[i] + 4 > 4096) {
-                    g->count[i] = filter_one(g, x, i, h * h);
-                    continue;
-                }
-                g->count[i] = filter_one_avx2(g, x, i, h * h, tmp);
-                if (g->count[i] > 0)
-                    memcpy(g->nbr + g->off[i], tmp, (size_t)g->count[i] * sizeof *tmp);
-            }
-        }
+#pragma omp parallel for schedule(static)
+        for (int i = 0; i < n; i++) g->count[i] = filter_one_avx2(g, x, i, h * h);
         return 0;
     }
 #endif
