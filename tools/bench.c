@@ -380,8 +380,9 @@ static int bench_effects(const bench_args *a)
 
 /* ------------------------------------------------------------------------- scaling */
 
-/* The scene at its spacing and at spacing / 10^(1/3) (10x the particles): cost per step. */
-static int bench_scaling(const bench_args *a)
+/* The two particle counts of scaling and grid: the scene's spacing and spacing / 10^(1/3)
+ * (10x the particles), into sp[2]. 0, or 2 (message printed) when the scene is bad. */
+static int two_spacings(const bench_args *a, double sp[2])
 {
     char err[2048];
     stf_scene *sc;
@@ -389,8 +390,27 @@ static int bench_scaling(const bench_args *a)
         fprintf(stderr, "%s\n", err);
         return 2;
     }
-    double sp = sc->fluid.spacing;
+    sp[0] = sc->fluid.spacing;
+    sp[1] = sp[0] / cbrt(10.0);
     stf_scene_free(sc);
+    return 0;
+}
+
+/* The command's overrides and fluid.spacing = spacing (its text in buf) into ov; their count. */
+static int with_spacing(const bench_args *a, double spacing, stf_override *ov, char buf[64])
+{
+    int nov = 0;
+    for (int i = 0; i < a->nov; i++) ov[nov++] = a->ov[i];
+    snprintf(buf, 64, "%.9g", spacing);
+    ov[nov++] = (stf_override){"fluid.spacing", buf};
+    return nov;
+}
+
+/* The scene at its spacing and at spacing / 10^(1/3) (10x the particles): cost per step. */
+static int bench_scaling(const bench_args *a)
+{
+    double spk[2];
+    if (two_spacings(a, spk) != 0) return 2;
     printf("# stf bench scaling %s: %d timed steps after %d warm-up steps, %d run(s) of each\n",
            a->scene, a->steps, a->warmup, a->repeat);
     print_load();
@@ -401,15 +421,12 @@ static int bench_scaling(const bench_args *a)
     /* each size --repeat times, interleaved (a slow spell of the machine hits both); the
        fastest run of each counts, and the spread of the runs is printed */
     timing best[2];
-    double slowest[2] = {0, 0}, spk[2] = {sp, sp / cbrt(10.0)};
+    double slowest[2] = {0, 0};
     for (int r = 0; r < a->repeat; r++)
         for (int k = 0; k < 2; k++) {
             stf_override ov[MAX_OV + 1];
-            int nov = 0;
-            for (int i = 0; i < a->nov; i++) ov[nov++] = a->ov[i];
             char v[64];
-            snprintf(v, sizeof v, "%.9g", spk[k]);
-            ov[nov++] = (stf_override){"fluid.spacing", v};
+            int nov = with_spacing(a, spk[k], ov, v);
             timing t;
             int rc = time_scene(a->scene, NULL, ov, nov, a->warmup, a->steps, &t);
             if (rc) return rc;
@@ -446,22 +463,13 @@ static int bench_grid(const bench_args *a)
     print_load();
     printf("%12s %9s %8s %8s %12s %12s %10s\n", "spacing m", "n", "cand", "nbrs", "rebuild ms",
            "filter ms", "cpu ratio");
-    char err[2048];
-    stf_scene *sc;
-    if (stf_scene_load(a->scene, a->ov, a->nov, &sc, err, sizeof err) != 0) {
-        fprintf(stderr, "%s\n", err);
-        return 2;
-    }
-    double sp = sc->fluid.spacing, first = 0;
-    stf_scene_free(sc);
+    double spk[2], first = 0;
+    if (two_spacings(a, spk) != 0) return 2;
     for (int k = 0; k < 2; k++) {
-        char v[64];
+        char err[2048], v[64];
         stf_override ov[MAX_OV + 1];
-        int nov = 0;
-        for (int i = 0; i < a->nov; i++) ov[nov++] = a->ov[i];
-        double spk = k == 0 ? sp : sp / cbrt(10.0);
-        snprintf(v, sizeof v, "%.9g", spk);
-        ov[nov++] = (stf_override){"fluid.spacing", v};
+        int nov = with_spacing(a, spk[k], ov, v);
+        stf_scene *sc;
         stf_sim *sim;
         if (stf_scene_load(a->scene, ov, nov, &sc, err, sizeof err) != 0 ||
             stf_sim_create(sc, &sim, err, sizeof err) != 0) {
@@ -488,7 +496,7 @@ static int bench_grid(const bench_args *a)
             for (int i = 0; i < n; i++) nc += g.ccount[i], nn += g.count[i];
             double filter = 1e3 * (c2 - c1) / a->steps, rebuild = 1e3 * (c1 - c0) / a->steps - filter;
             if (k == 0) first = rebuild + filter;
-            printf("%12.5g %9d %8.1f %8.1f %12.2f %12.2f %10.2f\n", spk, n, (double)nc / n,
+            printf("%12.5g %9d %8.1f %8.1f %12.2f %12.2f %10.2f\n", spk[k], n, (double)nc / n,
                    (double)nn / n, rebuild, filter, (rebuild + filter) / first);
         } else {
             fprintf(stderr, "stf bench grid: out of memory\n");
