@@ -203,6 +203,8 @@ static int find_candidates(const double *x, int i, double h2, const cell_run *r,
 #if defined(__x86_64__) && defined(__GNUC__)
 #include <immintrin.h>
 #define HAVE_AVX2_PATH 1
+/* The AVX2 search and filter, unless the processor lacks AVX2 or a test asked for plain C. */
+static int use_avx2(const stf_grid *g) { return !g->plain && __builtin_cpu_supports("avx2"); }
 /* pshufb controls that move the int32 lanes picked by a 4-bit mask to the front, in order */
 static const uint8_t compress4[16][16] = {
 #define L(k) 4 * (k), 4 * (k) + 1, 4 * (k) + 2, 4 * (k) + 3
@@ -278,7 +280,7 @@ static int rebuild(stf_grid *g, const double *x, int n, double h)
     if (sort_by_bucket(g, x, n) != 0) return -1;
     double inv = 1.0 / rc;
 #ifdef HAVE_AVX2_PATH
-    int avx2 = !g->plain && __builtin_cpu_supports("avx2");
+    int avx2 = use_avx2(g);
 #endif
     int threads = omp_get_max_threads();
     if (threads > g->nbuf) { /* the threads' buffers, kept from one rebuild to the next */
@@ -627,7 +629,7 @@ int grid_build_checked(stf_grid *g, const double *x, int n, double h)
     if (periodic(g)) return build_periodic(g, x, n, h);
     if (!g->valid && rebuild(g, x, n, h) != 0) return -1;
 #ifdef HAVE_AVX2_PATH
-    if (!g->plain && __builtin_cpu_supports("avx2")) {
+    if (use_avx2(g)) {
 #pragma omp parallel for schedule(static)
         for (int i = 0; i < n; i++) g->count[i] = filter_one_avx2(g, x, i, h * h);
         return 0;
