@@ -272,7 +272,9 @@ static int adjust_one(stf_fluid *f, int i, int64_t stamp, int64_t *mark, double 
  * sum c_ij reaches tens and the run blew up in 20 steps), so each gain is multiplied by
  * min(scale_i, scale_j), scale_i = min(1, 1 / sum_j c_ij): a spring never does more than
  * become rigid within the step. The factor is symmetric, so the two halves of a pair stay
- * exact negatives (momentum). The history stiffness and gains are those of the fused pass. */
+ * exact negatives (momentum). The history stiffness and gains are recomputed by the fused
+ * pass's formulas, except that the gain takes L / h where spring_ops takes L * (1 / h) (the
+ * last bit may differ). */
 static void saturated_one(stf_fluid *f, int i, double dt, double khist_scale, const double *scale)
 {
     const stf_springs *s = &f->springs;
