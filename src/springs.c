@@ -108,35 +108,10 @@ static double plastic_rest(double L, double r, double gamma, double alpha, doubl
     return L + dt * alpha * up - dt * alpha * down;
 }
 
-/* Alg. 3 with Eq. 6 for one spring of particle i (to j at r = (rx, ry, rz), |r| = r, rest
- * length L): adds -D/2 to d, the displacement scaled by scale (the saturation factor, see
- * saturated_one). */
-static inline void push_one(const stf_fluid *f, int i, int j, double rx, double ry, double rz,
-                            double r, double L, double dt, double khist_scale, double scale,
-                            double d[3])
-{
-    const double *D = f->hist.D;
-    double h = f->h;
-    if (r <= 1e-12 * h) return; /* coincident: no direction to push along */
-    double kij = f->def.k_min;
-    if (khist_scale > 0) {
-        double ex = D[3 * i] - D[3 * j], ey = D[3 * i + 1] - D[3 * j + 1],
-               ez = D[3 * i + 2] - D[3 * j + 2];
-        double kh = khist_scale * sqrt(ex * ex + ey * ey + ez * ez); /* Eq. 6 */
-        kh = kh > f->def.k_onset ? kh - f->def.k_onset : 0.0; /* thickening starts at the onset */
-        kij += kh;
-    }
-    double c = dt * dt * kij * (1.0 - L / h); /* the spring's gain (saturation, below) */
-    double mag = 0.5 * (c * scale) * (L - r) / r;
-    d[0] -= mag * rx;
-    d[1] -= mag * ry;
-    d[2] -= mag * rz;
-}
-
 /* The springs of one particle are processed in blocks of at most SPRING_CHUNK: first the
  * arithmetic over the block in a loop the compiler vectorizes, gathering the partners'
  * positions and history sums straight from the arrays, then the sums in list order, so the
- * results are those of one spring at a time (push_one). The old springs are a block of their
+ * results are those of one spring at a time. The old springs are a block of their
  * own list row; the new ones are collected from the neighbour row first.
  *
  * Measured (bowling ball, 20K particles, one thread): staging the gathers in arrays first
@@ -158,7 +133,7 @@ typedef struct spring_acc {
     int cnt;
 } spring_acc;
 
-/* The arithmetic of Alg. 4 and push_one (scale 1) for the m springs of particle i to
+/* The arithmetic of Alg. 4 and Alg. 3 with Eq. 6 (unsaturated) for the m springs of particle i to
  * js[0..m) with old rest lengths L0s (fresh: new springs, which start at their length), into
  * ch; hist: with the history stiffness (Eq. 6). Branch-free, so it vectorizes; inlined with
  * constant fresh and hist, so each case is a loop of its own with no conditional loads. */
@@ -297,7 +272,9 @@ static int adjust_one(stf_fluid *f, int i, int64_t stamp, int64_t *mark, double 
  * sum c_ij reaches tens and the run blew up in 20 steps), so each gain is multiplied by
  * min(scale_i, scale_j), scale_i = min(1, 1 / sum_j c_ij): a spring never does more than
  * become rigid within the step. The factor is symmetric, so the two halves of a pair stay
- * exact negatives (momentum). The history stiffness and gains are those of the fused pass. */
+ * exact negatives (momentum). The history stiffness and gains are recomputed by the fused
+ * pass's formulas, except that the gain takes L / h where spring_ops takes L * (1 / h) (the
+ * last bit may differ). */
 static void saturated_one(stf_fluid *f, int i, double dt, double khist_scale, const double *scale)
 {
     const stf_springs *s = &f->springs;
@@ -305,13 +282,27 @@ static void saturated_one(stf_fluid *f, int i, double dt, double khist_scale, co
     double d[3] = {0, 0, 0};
     const int32_t *p = s->partner + (size_t)i * s->stride;
     const double *Ls = s->rest + (size_t)i * s->stride;
+    const double *D = f->hist.D;
+    double h = f->h;
     for (int k = 0; k < s->count[i]; k++) {
         int j = p[k];
         double rx = x[3 * j] - x[3 * i], ry = x[3 * j + 1] - x[3 * i + 1],
                rz = x[3 * j + 2] - x[3 * i + 2];
         double r = sqrt(rx * rx + ry * ry + rz * rz);
-        push_one(f, i, j, rx, ry, rz, r, Ls[k], dt, khist_scale,
-                 scale[i] < scale[j] ? scale[i] : scale[j], d);
+        if (r <= 1e-12 * h) continue; /* coincident: no direction to push along */
+        double kij = f->def.k_min, L = Ls[k];
+        if (khist_scale > 0) {
+            double ex = D[3 * i] - D[3 * j], ey = D[3 * i + 1] - D[3 * j + 1],
+                   ez = D[3 * i + 2] - D[3 * j + 2];
+            double kh = khist_scale * sqrt(ex * ex + ey * ey + ez * ez); /* Eq. 6 */
+            kh = kh > f->def.k_onset ? kh - f->def.k_onset : 0.0; /* thickening starts at the onset */
+            kij += kh;
+        }
+        double c = dt * dt * kij * (1.0 - L / h); /* the spring's gain */
+        double mag = 0.5 * (c * (scale[i] < scale[j] ? scale[i] : scale[j])) * (L - r) / r;
+        d[0] -= mag * rx;
+        d[1] -= mag * ry;
+        d[2] -= mag * rz;
     }
     for (int a = 0; a < 3; a++) f->dx[3 * i + a] = d[a];
 }
