@@ -2,12 +2,11 @@
 #include "history.h"
 
 #include <math.h>
-#include <omp.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "fluid.h"
 #include "stf.h"
+#include "vector_clones.h"
 
 /* Eq. 3 (Soon et al.'s second-order scheme; the product-trapezoidal rule for the Riemann-
  * Liouville integral of order 1-q of v, so exact for piecewise-linear v). */
