@@ -30,7 +30,8 @@ static void fill_weights(stf_history *h, int from)
         h->w[k] = stf_history_weight(h->q, 1, (long)k + 1);
 }
 
-/* Window mode, time blocks of HIST_TBLOCK samples (see derivative_blocked). */
+/* Window mode, time blocks of HIST_TBLOCK samples (see derivative_blocked); HIST_NEWER: the
+ * elements a thread sums at a time (also in the direct sum, history_derivative). */
 enum { HIST_TBLOCK = 16, HIST_CHUNK = 64, HIST_RUN = 16, HIST_NEWER = 1536 };
 
 int history_init(stf_history *h, double q, int window, int n)
@@ -399,12 +400,11 @@ void history_derivative(stf_history *h, int n)
     /* Blocks of particles: each block's sums stay in L1 while every slot streams past. The
        sum of each component runs over the lags in the same order whatever the blocks (or
        threads), from lag 0 to the end point. */
-    enum { BLOCK = 1536 };
-    int nblocks = (len + BLOCK - 1) / BLOCK;
+    int nblocks = (len + HIST_NEWER - 1) / HIST_NEWER;
 #pragma omp parallel for schedule(static)
     for (int b = 0; b < nblocks; b++) {
-        int lo = b * BLOCK, cnt = len - lo < BLOCK ? len - lo : BLOCK;
-        double acc[BLOCK];
+        int lo = b * HIST_NEWER, cnt = len - lo < HIST_NEWER ? len - lo : HIST_NEWER;
+        double *restrict acc = h->D + lo; /* in L1 while the samples stream past */
         for (int e = 0; e < cnt; e++) acc[e] = 0.0;
         for (int k = 0; k <= m; k++) {
             int s = head - k;
@@ -413,7 +413,6 @@ void history_derivative(stf_history *h, int n)
             double wk = k < m ? w[k] : w_end;
             for (int e = 0; e < cnt; e++) acc[e] += wk * r[e];
         }
-        memcpy(h->D + lo, acc, (size_t)cnt * sizeof *acc);
     }
 }
 
