@@ -34,6 +34,13 @@ static void fill_weights(stf_history *h, int from)
  * elements a thread sums at a time (also in the direct sum, history_derivative). */
 enum { HIST_TBLOCK = 16, HIST_CHUNK = 64, HIST_RUN = 16, HIST_NEWER = 1536 };
 
+/* The exact ring takes the time-blocked sum: a window longer than a block, in steady state
+ * (every sum has all d + 1 lags with the interior weights). */
+static int blocked_sum(const stf_history *h)
+{
+    return !h->terms && h->window > HIST_TBLOCK && h->pushed - 1 >= h->cap;
+}
+
 int history_init(stf_history *h, double q, int window, int n)
 {
     memset(h, 0, sizeof *h);
@@ -282,7 +289,7 @@ double history_error_bound(const stf_history *h)
        any term (one product, the additions after it). */
     double ud = 0x1p-53, uf = 0x1p-24, m = h->cap + 1.0;
     double dbl = m * ud / (1.0 - m * ud);
-    if (h->terms || h->window <= HIST_TBLOCK || h->pushed - 1 < h->cap) return dbl;
+    if (!blocked_sum(h)) return dbl;
     double k = HIST_RUN + 1.0, flt = k * uf / (1.0 - k * uf); /* see old_chunk */
     return flt + dbl * (1.0 + flt);
 }
@@ -384,10 +391,8 @@ static int derivative_blocked(stf_history *h, int n)
 void history_derivative(stf_history *h, int n)
 {
     if (h->terms) return; /* the soe push computed D */
-    /* a window longer than a block, in steady state: the blocked sum (falls back to the
-       direct one below when out of memory) */
-    if (h->window > HIST_TBLOCK && h->pushed - 1 >= h->cap && derivative_blocked(h, n) == 0)
-        return;
+    /* the blocked sum (falls back to the direct one below when out of memory) */
+    if (blocked_sum(h) && derivative_blocked(h, n) == 0) return;
     /* m = the oldest lag present. While fewer than cap samples exist, the oldest one is p = 0
      * of Eq. 3 and takes the end-point weight a_{0,n}. */
     long last = h->pushed - 1;
