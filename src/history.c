@@ -337,7 +337,8 @@ static void old_chunk(const stf_history *h, int simd, int j0, int lo, int cnt, i
 static int fill_old(stf_history *h, long n0, int j0, int n)
 {
     int len = 3 * n;
-    if (h->n_old < n) {
+    if (h->n_old != h->n_alloc) { /* a valid old covers every particle the ring holds */
+        h->old_n0 = -1;
         free(h->old);
         h->old = malloc((size_t)HIST_TBLOCK * (size_t)h->n_alloc * 3 * sizeof *h->old);
         h->n_old = h->old ? h->n_alloc : 0;
@@ -375,9 +376,7 @@ static int derivative_blocked(stf_history *h, int n)
 {
     long t = h->pushed - 1, n0 = t - t % HIST_TBLOCK;
     int j = (int)(t - n0);
-    if (h->old_n0 != n0 || h->n_old < n) {
-        if (fill_old(h, n0, j, n) != 0) return -1;
-    }
+    if (h->old_n0 != n0 && fill_old(h, n0, j, n) != 0) return -1;
     int len = 3 * n, nblocks = (len + HIST_NEWER - 1) / HIST_NEWER;
     const double *old = h->old + (size_t)j * (size_t)h->n_old * 3;
 #pragma omp parallel for schedule(static)
