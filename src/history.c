@@ -82,9 +82,9 @@ void *history_grow_zeroed(void *p, size_t old_n, size_t new_n, size_t size)
     return q;
 }
 
-/* A new slot-major ring of `slots` slots of 3 n_new floats, taking slot s of the old ring
- * from old slot from(s) for s < keep (3 n_old floats each), the rest zero. NULL when out of
- * memory. */
+/* A new slot-major ring of `slots` slots of 3 n_new floats, taking slot s from the ring's
+ * slot (first + s) mod cap for s < keep (its 3 n_alloc floats), the rest zero. NULL when out
+ * of memory. */
 static float *reshape_ring(const stf_history *h, int slots, int n_new, int keep, int first)
 {
     size_t row = (size_t)n_new * 3, orow = (size_t)h->n_alloc * 3;
