@@ -340,7 +340,9 @@ static int fill_old(stf_history *h, long n0, int j0, int n)
     if (h->n_old != h->n_alloc) { /* a valid old covers every particle the ring holds */
         h->old_n0 = -1;
         free(h->old);
-        h->old = malloc((size_t)HIST_TBLOCK * (size_t)h->n_alloc * 3 * sizeof *h->old);
+        /* zeroed: a particle added in the middle of a block (past the n filled for) has a
+           zero past, as its ring rows do, and +0 is what a pass would give it */
+        h->old = calloc((size_t)HIST_TBLOCK * (size_t)h->n_alloc * 3, sizeof *h->old);
         h->n_old = h->old ? h->n_alloc : 0;
         if (!h->old) return -1;
     }
