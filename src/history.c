@@ -2,12 +2,11 @@
 #include "history.h"
 
 #include <math.h>
-#include <omp.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "fluid.h"
 #include "stf.h"
+#include "vector_clones.h"
 
 /* Eq. 3 (Soon et al.'s second-order scheme; the product-trapezoidal rule for the Riemann-
  * Liouville integral of order 1-q of v, so exact for piecewise-linear v). */
@@ -31,8 +30,16 @@ static void fill_weights(stf_history *h, int from)
         h->w[k] = stf_history_weight(h->q, 1, (long)k + 1);
 }
 
-/* Window mode, time blocks of HIST_TBLOCK samples (see derivative_blocked). */
+/* Window mode, time blocks of HIST_TBLOCK samples (see derivative_blocked); HIST_NEWER: the
+ * elements a thread sums at a time (also in the direct sum, history_derivative). */
 enum { HIST_TBLOCK = 16, HIST_CHUNK = 64, HIST_RUN = 16, HIST_NEWER = 1536 };
+
+/* The exact ring takes the time-blocked sum: a window longer than a block, in steady state
+ * (every sum has all d + 1 lags with the interior weights). */
+static int blocked_sum(const stf_history *h)
+{
+    return !h->terms && h->window > HIST_TBLOCK && h->pushed - 1 >= h->cap;
+}
 
 int history_init(stf_history *h, double q, int window, int n)
 {
@@ -75,9 +82,9 @@ void *history_grow_zeroed(void *p, size_t old_n, size_t new_n, size_t size)
     return q;
 }
 
-/* A new slot-major ring of `slots` slots of 3 n_new floats, taking slot s of the old ring
- * from old slot from(s) for s < keep (3 n_old floats each), the rest zero. NULL when out of
- * memory. */
+/* A new slot-major ring of `slots` slots of 3 n_new floats, taking slot s from the ring's
+ * slot (first + s) mod cap for s < keep (its 3 n_alloc floats), the rest zero. NULL when out
+ * of memory. */
 static float *reshape_ring(const stf_history *h, int slots, int n_new, int keep, int first)
 {
     size_t row = (size_t)n_new * 3, orow = (size_t)h->n_alloc * 3;
@@ -282,7 +289,7 @@ double history_error_bound(const stf_history *h)
        any term (one product, the additions after it). */
     double ud = 0x1p-53, uf = 0x1p-24, m = h->cap + 1.0;
     double dbl = m * ud / (1.0 - m * ud);
-    if (h->terms || h->window <= HIST_TBLOCK || h->pushed - 1 < h->cap) return dbl;
+    if (!blocked_sum(h)) return dbl;
     double k = HIST_RUN + 1.0, flt = k * uf / (1.0 - k * uf); /* see old_chunk */
     return flt + dbl * (1.0 + flt);
 }
@@ -330,9 +337,12 @@ static void old_chunk(const stf_history *h, int simd, int j0, int lo, int cnt, i
 static int fill_old(stf_history *h, long n0, int j0, int n)
 {
     int len = 3 * n;
-    if (h->n_old < n) {
+    if (h->n_old != h->n_alloc) { /* a valid old covers every particle the ring holds */
+        h->old_n0 = -1;
         free(h->old);
-        h->old = malloc((size_t)HIST_TBLOCK * (size_t)h->n_alloc * 3 * sizeof *h->old);
+        /* zeroed: a particle added in the middle of a block (past the n filled for) has a
+           zero past, as its ring rows do, and +0 is what a pass would give it */
+        h->old = calloc((size_t)HIST_TBLOCK * (size_t)h->n_alloc * 3, sizeof *h->old);
         h->n_old = h->old ? h->n_alloc : 0;
         if (!h->old) return -1;
     }
@@ -368,9 +378,7 @@ static int derivative_blocked(stf_history *h, int n)
 {
     long t = h->pushed - 1, n0 = t - t % HIST_TBLOCK;
     int j = (int)(t - n0);
-    if (h->old_n0 != n0 || h->n_old < n) {
-        if (fill_old(h, n0, j, n) != 0) return -1;
-    }
+    if (h->old_n0 != n0 && fill_old(h, n0, j, n) != 0) return -1;
     int len = 3 * n, nblocks = (len + HIST_NEWER - 1) / HIST_NEWER;
     const double *old = h->old + (size_t)j * (size_t)h->n_old * 3;
 #pragma omp parallel for schedule(static)
@@ -384,10 +392,8 @@ static int derivative_blocked(stf_history *h, int n)
 void history_derivative(stf_history *h, int n)
 {
     if (h->terms) return; /* the soe push computed D */
-    /* a window longer than a block, in steady state: the blocked sum (falls back to the
-       direct one below when out of memory) */
-    if (h->window > HIST_TBLOCK && h->pushed - 1 >= h->cap && derivative_blocked(h, n) == 0)
-        return;
+    /* the blocked sum (falls back to the direct one below when out of memory) */
+    if (blocked_sum(h) && derivative_blocked(h, n) == 0) return;
     /* m = the oldest lag present. While fewer than cap samples exist, the oldest one is p = 0
      * of Eq. 3 and takes the end-point weight a_{0,n}. */
     long last = h->pushed - 1;
@@ -400,12 +406,11 @@ void history_derivative(stf_history *h, int n)
     /* Blocks of particles: each block's sums stay in L1 while every slot streams past. The
        sum of each component runs over the lags in the same order whatever the blocks (or
        threads), from lag 0 to the end point. */
-    enum { BLOCK = 1536 };
-    int nblocks = (len + BLOCK - 1) / BLOCK;
+    int nblocks = (len + HIST_NEWER - 1) / HIST_NEWER;
 #pragma omp parallel for schedule(static)
     for (int b = 0; b < nblocks; b++) {
-        int lo = b * BLOCK, cnt = len - lo < BLOCK ? len - lo : BLOCK;
-        double acc[BLOCK];
+        int lo = b * HIST_NEWER, cnt = len - lo < HIST_NEWER ? len - lo : HIST_NEWER;
+        double *restrict acc = h->D + lo; /* in L1 while the samples stream past */
         for (int e = 0; e < cnt; e++) acc[e] = 0.0;
         for (int k = 0; k <= m; k++) {
             int s = head - k;
@@ -414,7 +419,6 @@ void history_derivative(stf_history *h, int n)
             double wk = k < m ? w[k] : w_end;
             for (int e = 0; e < cnt; e++) acc[e] += wk * r[e];
         }
-        memcpy(h->D + lo, acc, (size_t)cnt * sizeof *acc);
     }
 }
 
