@@ -6,7 +6,7 @@
 #include <string.h>
 
 #include "stf.h"
-#include "vector_clones.h"
+#include "fluid.h" /* STF_VECTOR_CLONES */
 
 /* Eq. 3 (Soon et al.'s second-order scheme; the product-trapezoidal rule for the Riemann-
  * Liouville integral of order 1-q of v, so exact for piecewise-linear v). */
