@@ -401,18 +401,22 @@ int fluid_permute(stf_fluid *f, const int32_t *perm)
  * step), so it is a blow-up caught before it turns into NaN. */
 static int first_bad(const stf_fluid *f, double vmax)
 {
-    int bad = f->n;
-    double v2max = vmax * vmax;
+    int n = f->n, bad = n;
+    const double *x = f->x, *v = f->v, *xp = f->xprev;
+    double v2max = vmax * vmax, d2max = v2max * (f->dt_now * f->dt_now);
+    /* Comparisons that are false for NaN: a non-finite velocity fails the first, a
+       non-finite position the second (xprev was checked a stage earlier, so it is finite).
+       No branch and no division: this runs after every stage. */
 #pragma omp parallel for schedule(static) reduction(min : bad)
-    for (int i = 0; i < f->n; i++) {
-        const double *x = f->x + 3 * i, *v = f->v + 3 * i, *xp = f->xprev + 3 * i;
-        double v2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
-        double d[3] = {x[0] - xp[0], x[1] - xp[1], x[2] - xp[2]};
-        double d2 = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) / (f->dt_now * f->dt_now);
-        int ok = isfinite(x[0]) && isfinite(x[1]) && isfinite(x[2]) && v2 <= v2max && d2 <= v2max;
-        if (!ok && i < bad) bad = i;
+    for (int i = 0; i < n; i++) {
+        double v2 = v[3 * i] * v[3 * i] + v[3 * i + 1] * v[3 * i + 1] + v[3 * i + 2] * v[3 * i + 2];
+        double dx = x[3 * i] - xp[3 * i], dy = x[3 * i + 1] - xp[3 * i + 1],
+               dz = x[3 * i + 2] - xp[3 * i + 2];
+        double d2 = dx * dx + dy * dy + dz * dz;
+        int ok = (v2 <= v2max) & (d2 <= d2max);
+        bad = ok || bad < i ? bad : i;
     }
-    return bad < f->n ? bad : -1;
+    return bad < n ? bad : -1;
 }
 
 int fluid_check(stf_fluid *f, const char *effect)
