@@ -70,6 +70,9 @@ static int ensure_particles(stf_grid *g, int n)
     size_t *off = realloc(g->off, ((size_t)cap + 1) * sizeof *off);
     if (!off) return -1;
     g->off = off;
+    size_t *noff = realloc(g->noff, (size_t)cap * sizeof *noff);
+    if (!noff) return -1;
+    g->noff = noff;
     double *xref = realloc(g->xref, (size_t)cap * 3 * sizeof *xref);
     if (!xref) return -1;
     g->xref = xref;
@@ -270,7 +273,8 @@ static int grow_i32(int32_t **p, size_t *cap, size_t need)
 /* Candidate lists within h + skin, and the reference positions. Each thread searches a
  * contiguous range of particles (in memory order, so consecutive ones mostly share a cell
  * and its run) into its own buffer; then the lists are laid end to end in particle order
- * (row i at off[i], ccount[i] long), and the neighbour rows get the same offsets. */
+ * (row i at off[i], ccount[i] long); the neighbour rows go in the same space (see
+ * grid_build_checked). */
 static int rebuild(stf_grid *g, const double *x, int n, double h)
 {
     g->valid = 0; /* until it succeeds: a failure leaves ccount, off and cand half new */
@@ -373,12 +377,11 @@ static void most_moved(const stf_grid *g, const double *x, int n, double *d1, do
     *d2 = sqrt(m2);
 }
 
-/* Particle i's neighbours within h: its candidates filtered, in their order (the neighbour
- * row has a slot for every candidate). */
-static int filter_one(stf_grid *g, const double *x, int i, double h2)
+/* Particle i's neighbours within h: its candidates filtered, in their order, to out (room
+ * for every candidate). */
+static int filter_one(const stf_grid *g, const double *x, int i, double h2, int32_t *out)
 {
     const int32_t *c = g->cand + g->off[i];
-    int32_t *out = g->nbr + g->off[i];
     int cnt = 0, m = g->ccount[i]; /* locals: the stores to out could alias ccount */
     double xi = x[3 * i], yi = x[3 * i + 1], zi = x[3 * i + 2];
     for (int k = 0; k < m; k++) {
@@ -393,13 +396,12 @@ static int filter_one(stf_grid *g, const double *x, int i, double h2)
 #ifdef HAVE_AVX2_PATH
 /* filter_one four candidates at a time: their positions loaded one by one (a hardware gather
  * is slower here), the distances and the packing of the hits as in find_candidates_avx2.
- * Its 4-wide stores stay inside the row: four candidates k..k+3 write at most to cnt + 3 <=
- * k + 3, a slot of the row. */
-__attribute__((target("avx2"))) static int filter_one_avx2(stf_grid *g, const double *x, int i,
-                                                           double h2)
+ * Its 4-wide stores stay inside the room out has: four candidates k..k+3 write at most to
+ * cnt + 3 <= k + 3 < ccount[i]. */
+__attribute__((target("avx2"))) static int filter_one_avx2(const stf_grid *g, const double *x,
+                                                           int i, double h2, int32_t *out)
 {
     const int32_t *c = g->cand + g->off[i];
-    int32_t *out = g->nbr + g->off[i];
     int m = g->ccount[i], cnt = 0, k = 0;
     __m256d px = _mm256_set1_pd(x[3 * i]), py = _mm256_set1_pd(x[3 * i + 1]),
             pz = _mm256_set1_pd(x[3 * i + 2]), lim = _mm256_set1_pd(h2);
@@ -613,6 +615,7 @@ static int build_periodic(stf_grid *g, const double *x, int n, double h)
         g->stride = most + most / 2;
     }
     for (int i = 0; i <= n; i++) g->off[i] = (size_t)i * (size_t)g->stride;
+    for (int i = 0; i < n; i++) g->noff[i] = g->off[i];
     return 0;
 }
 
@@ -628,15 +631,29 @@ int grid_build_checked(stf_grid *g, const double *x, int n, double h)
     g->builds++;
     if (periodic(g)) return build_periodic(g, x, n, h);
     if (!g->valid && rebuild(g, x, n, h) != 0) return -1;
+    /* Each thread filters a contiguous range of particles and packs their rows end to end
+       from where the range's candidates start (a row is never longer than its candidates):
+       the rows are read by every neighbour pass, and packed they take half the cache lines
+       of rows spread over the candidates' space. The rows do not depend on the threads;
+       where they lie does. */
 #ifdef HAVE_AVX2_PATH
-    if (use_avx2(g)) {
-#pragma omp parallel for schedule(static)
-        for (int i = 0; i < n; i++) g->count[i] = filter_one_avx2(g, x, i, h * h);
-        return 0;
-    }
+    int avx2 = use_avx2(g);
 #endif
-#pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) g->count[i] = filter_one(g, x, i, h * h);
+#pragma omp parallel
+    {
+        int nt = omp_get_num_threads(), t = omp_get_thread_num();
+        int lo = (int)((int64_t)n * t / nt), hi = (int)((int64_t)n * (t + 1) / nt);
+        size_t pos = lo < hi ? g->off[lo] : 0;
+        for (int i = lo; i < hi; i++) {
+            g->noff[i] = pos;
+#ifdef HAVE_AVX2_PATH
+            if (avx2) g->count[i] = filter_one_avx2(g, x, i, h * h, g->nbr + pos);
+            else
+#endif
+                g->count[i] = filter_one(g, x, i, h * h, g->nbr + pos);
+            pos += (size_t)g->count[i];
+        }
+    }
     return 0;
 }
 
@@ -651,6 +668,7 @@ void grid_free(stf_grid *g)
     free(g->ccount);
     free(g->xref);
     free(g->off);
+    free(g->noff);
     free(g->box);
     for (int t = 0; t < g->nbuf; t++) free(g->buf[t]);
     free(g->buf);
@@ -668,7 +686,7 @@ static size_t grid_buf_bytes(const stf_grid *g)
 size_t grid_bytes(const stf_grid *g)
 {
     return (size_t)g->n_alloc * (sizeof(uint32_t) + 3 * sizeof(int32_t) + 3 * sizeof(double) +
-                                 sizeof(size_t)) +
+                                 2 * sizeof(size_t)) +
            (g->cand_cap + g->nbr_cap) * sizeof(int32_t) + grid_buf_bytes(g) +
            g->nbox * 6 * sizeof(double) +
            ((size_t)g->nbuckets_alloc + 1) * sizeof(int32_t);

@@ -4,8 +4,9 @@
  * by bucket. Each particle gets a candidate list (r < h + skin), the lists laid end to end in
  * particle order. They are rebuilt only when two particles that may be closer than h now
  * have moved more than the skin relative to each other since the last rebuild (Verlet
- * lists), or when the particles were reordered. Every step the candidates are filtered to the neighbours within h, into
- * rows at the same offsets (grid_row). The rebuilds depend on the positions only and the
+ * lists), or when the particles were reordered. Every step the candidates are filtered to
+ * the neighbours within h, into rows packed in the candidates' space (grid_row). The
+ * rebuilds depend on the positions only and the
  * lists are built in parallel with no shared writes, so the lists (and the order of every
  * sum over them) do not depend on the thread count. */
 #ifndef STF_GRID_H
@@ -20,9 +21,10 @@ typedef struct stf_grid {
     uint32_t *key;     /* n: bucket of each particle */
     int32_t *order;    /* n: particle indices sorted by bucket (stable) */
     int32_t *start;    /* nbuckets + 1: first entry of each bucket in order */
-    int32_t *nbr;      /* neighbour indices: particle i's at nbr + off[i] (grid_row) */
+    int32_t *nbr;      /* neighbour indices: particle i's at nbr + noff[i] (grid_row) */
     int32_t *count;    /* n: neighbours of each particle */
-    size_t *off;       /* n + 1: where each particle's row starts in nbr and cand */
+    size_t *off;       /* n + 1: where each particle's candidate row starts in cand */
+    size_t *noff;      /* n: where its neighbour row starts in nbr */
     size_t nbr_cap;    /* entries nbr holds */
     int stride;        /* periodic grids: row capacity (off[i] = i stride); grows */
     int n_alloc;       /* particles the arrays hold */
@@ -77,7 +79,7 @@ size_t grid_bytes(const stf_grid *g);
 int grid_restore(stf_grid *g, const double *xref, int n, double h, double skin_used);
 
 /* Particle i's neighbours within h (count[i] of them), after grid_build. */
-static inline const int32_t *grid_row(const stf_grid *g, int i) { return g->nbr + g->off[i]; }
+static inline const int32_t *grid_row(const stf_grid *g, int i) { return g->nbr + g->noff[i]; }
 
 /* Asks for particle i's neighbour row ahead of a pass that visits the particles in order. */
 static inline void grid_prefetch(const stf_grid *g, int i, int n)
