@@ -238,7 +238,7 @@ int stf_fluid_add_particle(stf_fluid *f, const double x[3], const double v[3])
     }
     f->id[i] = f->next_id++;
     if (f->khist_mean) f->khist_mean[i] = 0;
-    if (f->springs.n_alloc) f->springs.count[i] = 0;
+    if (f->springs.n_alloc) f->springs.count[i] = 0, f->springs.complete[i] = 0;
     return i;
 }
 

@@ -139,6 +139,7 @@ static int load_springs(stf_fluid *f, const stf_state *s, char *err, size_t errl
         return -1;
     }
     sp->saturated_steps = (long)sat;
+    memset(sp->complete, 0, (size_t)n * sizeof *sp->complete); /* search again (springs.c) */
     const int32_t *pp = p->data;
     const double *rr = r->data;
     size_t k = 0;

@@ -73,6 +73,12 @@ static int ensure_particles(stf_grid *g, int n)
     size_t *noff = realloc(g->noff, (size_t)cap * sizeof *noff);
     if (!noff) return -1;
     g->noff = noff;
+    size_t *woff = realloc(g->woff, ((size_t)cap + 1) * sizeof *woff);
+    if (!woff) return -1;
+    g->woff = woff;
+    uint8_t *gained = realloc(g->gained, (size_t)cap * sizeof *gained);
+    if (!gained) return -1;
+    g->gained = gained;
     double *xref = realloc(g->xref, (size_t)cap * 3 * sizeof *xref);
     if (!xref) return -1;
     g->xref = xref;
@@ -221,8 +227,8 @@ static const uint8_t compress4[16][16] = {
 };
 
 /* Of four entries j at offsets (rx, ry, rz), those closer than sqrt(lim) and not masked out
- * by `skip` (a 4-bit mask), packed in order to out: stores all four lanes, returns how many
- * count. No FMA: the same rounding as the plain loops. */
+ * by `skip` (a 4-bit mask), packed in order to out: stores all four lanes, returns the 4-bit
+ * mask of those that count. No FMA: the same rounding as the plain loops. */
 __attribute__((target("avx2"), always_inline)) static inline int
 pack_near4(int32_t *out, __m128i j, __m256d rx, __m256d ry, __m256d rz, __m256d lim, int skip)
 {
@@ -231,7 +237,7 @@ pack_near4(int32_t *out, __m128i j, __m256d rx, __m256d ry, __m256d rz, __m256d 
     int near = _mm256_movemask_pd(_mm256_cmp_pd(d2, lim, _CMP_LT_OQ)) & ~skip;
     __m128i ctl = _mm_loadu_si128((const __m128i *)compress4[near]);
     _mm_storeu_si128((__m128i *)out, _mm_shuffle_epi8(j, ctl));
-    return __builtin_popcount((unsigned)near);
+    return near;
 }
 
 /* find_candidates four entries at a time with no branch: the hits of each four are packed
@@ -253,7 +259,7 @@ __attribute__((target("avx2"))) static int find_candidates_avx2(const double *x,
         __m256d rz = _mm256_sub_pd(_mm256_loadu_pd(r->z + m), pz);
         __m128i j = _mm_loadu_si128((const __m128i *)(r->j + m));
         int self_lane = _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(j, self)));
-        cnt += pack_near4(out + cnt, j, rx, ry, rz, lim, self_lane);
+        cnt += __builtin_popcount((unsigned)pack_near4(out + cnt, j, rx, ry, rz, lim, self_lane));
     }
     return cnt;
 }
@@ -264,6 +270,17 @@ static int grow_i32(int32_t **p, size_t *cap, size_t need)
     if (need <= *cap) return 0;
     size_t c = need + need / 4 + 1024;
     int32_t *q = realloc(*p, c * sizeof *q);
+    if (!q) return -1;
+    *p = q;
+    *cap = c;
+    return 0;
+}
+
+static int grow_u64(uint64_t **p, size_t *cap, size_t need)
+{
+    if (need <= *cap) return 0;
+    size_t c = need + need / 4 + 256;
+    uint64_t *q = realloc(*p, c * sizeof *q);
     if (!q) return -1;
     *p = q;
     *cap = c;
@@ -334,9 +351,14 @@ static int rebuild(stf_grid *g, const double *x, int n, double h)
 #pragma omp single
         if (!failed) {
             g->off[0] = 0;
-            for (int i = 0; i < n; i++) g->off[i + 1] = g->off[i] + (size_t)g->ccount[i];
+            g->woff[0] = 0;
+            for (int i = 0; i < n; i++) {
+                g->off[i + 1] = g->off[i] + (size_t)g->ccount[i];
+                g->woff[i + 1] = g->woff[i] + ((size_t)g->ccount[i] + 63) / 64;
+            }
             if (grow_i32(&g->cand, &g->cand_cap, g->off[n]) != 0 ||
-                grow_i32(&g->nbr, &g->nbr_cap, g->off[n]) != 0)
+                grow_i32(&g->nbr, &g->nbr_cap, g->off[n]) != 0 ||
+                grow_u64(&g->inb, &g->inb_cap, g->woff[n]) != 0)
                 failed = 1;
         } /* implied barrier */
         if (!failed && len > 0) memcpy(g->cand + g->off[lo], *buf, len * sizeof **buf);
@@ -346,6 +368,7 @@ static int rebuild(stf_grid *g, const double *x, int n, double h)
     g->nref = n;
     g->href = h;
     g->valid = 1;
+    g->inb_fresh = 1; /* the bits of the old rows mean nothing for the new candidates */
     g->rebuilds++;
     return 0;
 }
@@ -377,19 +400,38 @@ static void most_moved(const stf_grid *g, const double *x, int n, double *d1, do
     *d2 = sqrt(m2);
 }
 
+/* The filters also keep one bit per candidate, set when it is a neighbour (inb, 64 to a word
+ * from woff[i]), and set gained[i] when a bit went from 0 to 1 since the last filter: a
+ * particle that gained no neighbour has no pair it has not seen (springs.c skips its search
+ * for new springs). inb_fresh (after a rebuild): every row counts as gained. */
+static inline void put_bits(stf_grid *g, int i, size_t w, uint64_t bits, int *gained)
+{
+    uint64_t *word = g->inb + g->woff[i] + w;
+    *gained |= (bits & ~*word) != 0;
+    *word = bits;
+}
+
 /* Particle i's neighbours within h: its candidates filtered, in their order, to out (room
  * for every candidate). */
-static int filter_one(const stf_grid *g, const double *x, int i, double h2, int32_t *out)
+static int filter_one(stf_grid *g, const double *x, int i, double h2, int32_t *out)
 {
     const int32_t *c = g->cand + g->off[i];
-    int cnt = 0, m = g->ccount[i]; /* locals: the stores to out could alias ccount */
+    int cnt = 0, m = g->ccount[i], gained = g->inb_fresh; /* locals: out could alias them */
+    uint64_t bits = 0;
     double xi = x[3 * i], yi = x[3 * i + 1], zi = x[3 * i + 2];
     for (int k = 0; k < m; k++) {
         int j = c[k];
         double rx = x[3 * j] - xi, ry = x[3 * j + 1] - yi, rz = x[3 * j + 2] - zi;
+        int in = rx * rx + ry * ry + rz * rz < h2;
         out[cnt] = j; /* branch-free: half the candidates are kept, unpredictably */
-        cnt += rx * rx + ry * ry + rz * rz < h2;
+        cnt += in;
+        bits |= (uint64_t)in << (k & 63);
+        if ((k & 63) == 63 || k == m - 1) {
+            put_bits(g, i, (size_t)k / 64, bits, &gained);
+            bits = 0;
+        }
     }
+    g->gained[i] = (uint8_t)gained;
     return cnt;
 }
 
@@ -398,11 +440,12 @@ static int filter_one(const stf_grid *g, const double *x, int i, double h2, int3
  * is slower here), the distances and the packing of the hits as in find_candidates_avx2.
  * Its 4-wide stores stay inside the room out has: four candidates k..k+3 write at most to
  * cnt + 3 <= k + 3 < ccount[i]. */
-__attribute__((target("avx2"))) static int filter_one_avx2(const stf_grid *g, const double *x,
-                                                           int i, double h2, int32_t *out)
+__attribute__((target("avx2"))) static int filter_one_avx2(stf_grid *g, const double *x, int i,
+                                                           double h2, int32_t *out)
 {
     const int32_t *c = g->cand + g->off[i];
-    int m = g->ccount[i], cnt = 0, k = 0;
+    int m = g->ccount[i], cnt = 0, k = 0, gained = g->inb_fresh;
+    uint64_t bits = 0;
     __m256d px = _mm256_set1_pd(x[3 * i]), py = _mm256_set1_pd(x[3 * i + 1]),
             pz = _mm256_set1_pd(x[3 * i + 2]), lim = _mm256_set1_pd(h2);
     for (; k + 4 <= m; k += 4) {
@@ -411,15 +454,26 @@ __attribute__((target("avx2"))) static int filter_one_avx2(const stf_grid *g, co
         __m256d rx = _mm256_sub_pd(_mm256_set_pd(f[0], e[0], b[0], a[0]), px);
         __m256d ry = _mm256_sub_pd(_mm256_set_pd(f[1], e[1], b[1], a[1]), py);
         __m256d rz = _mm256_sub_pd(_mm256_set_pd(f[2], e[2], b[2], a[2]), pz);
-        cnt += pack_near4(out + cnt, _mm_loadu_si128((const __m128i *)(c + k)), rx, ry, rz, lim, 0);
+        int near = pack_near4(out + cnt, _mm_loadu_si128((const __m128i *)(c + k)), rx, ry, rz,
+                              lim, 0);
+        cnt += __builtin_popcount((unsigned)near);
+        bits |= (uint64_t)near << (k & 63); /* k is a multiple of 4 */
+        if ((k & 63) == 60) {
+            put_bits(g, i, (size_t)k / 64, bits, &gained);
+            bits = 0;
+        }
     }
     double xi = x[3 * i], yi = x[3 * i + 1], zi = x[3 * i + 2];
     for (; k < m; k++) {
         int j = c[k];
         double rx = x[3 * j] - xi, ry = x[3 * j + 1] - yi, rz = x[3 * j + 2] - zi;
+        int in = rx * rx + ry * ry + rz * rz < h2;
         out[cnt] = j;
-        cnt += rx * rx + ry * ry + rz * rz < h2;
+        cnt += in;
+        bits |= (uint64_t)in << (k & 63);
     }
+    if (m & 63) put_bits(g, i, (size_t)(m - 1) / 64, bits, &gained); /* the last, partial word */
+    g->gained[i] = (uint8_t)gained;
     return cnt;
 }
 #endif
@@ -615,7 +669,7 @@ static int build_periodic(stf_grid *g, const double *x, int n, double h)
         g->stride = most + most / 2;
     }
     for (int i = 0; i <= n; i++) g->off[i] = (size_t)i * (size_t)g->stride;
-    for (int i = 0; i < n; i++) g->noff[i] = g->off[i];
+    for (int i = 0; i < n; i++) g->noff[i] = g->off[i], g->gained[i] = 1;
     return 0;
 }
 
@@ -654,6 +708,7 @@ int grid_build_checked(stf_grid *g, const double *x, int n, double h)
             pos += (size_t)g->count[i];
         }
     }
+    g->inb_fresh = 0;
     return 0;
 }
 
@@ -669,6 +724,9 @@ void grid_free(stf_grid *g)
     free(g->xref);
     free(g->off);
     free(g->noff);
+    free(g->woff);
+    free(g->gained);
+    free(g->inb);
     free(g->box);
     for (int t = 0; t < g->nbuf; t++) free(g->buf[t]);
     free(g->buf);
@@ -686,7 +744,8 @@ static size_t grid_buf_bytes(const stf_grid *g)
 size_t grid_bytes(const stf_grid *g)
 {
     return (size_t)g->n_alloc * (sizeof(uint32_t) + 3 * sizeof(int32_t) + 3 * sizeof(double) +
-                                 2 * sizeof(size_t)) +
+                                 3 * sizeof(size_t) + sizeof(uint8_t)) +
+           g->inb_cap * sizeof(uint64_t) +
            (g->cand_cap + g->nbr_cap) * sizeof(int32_t) + grid_buf_bytes(g) +
            g->nbox * 6 * sizeof(double) +
            ((size_t)g->nbuckets_alloc + 1) * sizeof(int32_t);

@@ -25,6 +25,12 @@ typedef struct stf_grid {
     int32_t *count;    /* n: neighbours of each particle */
     size_t *off;       /* n + 1: where each particle's candidate row starts in cand */
     size_t *noff;      /* n: where its neighbour row starts in nbr */
+    uint8_t *gained;   /* n: 1 when the last filter found a neighbour the one before had not
+                          (always after a rebuild, and on periodic grids) */
+    uint64_t *inb;     /* one bit per candidate: a neighbour at the last filter */
+    size_t *woff;      /* n + 1: where each particle's bits start in inb, words */
+    size_t inb_cap;    /* words inb holds */
+    int inb_fresh;     /* 1 after a rebuild: the next filter marks every row gained */
     size_t nbr_cap;    /* entries nbr holds */
     int stride;        /* periodic grids: row capacity (off[i] = i stride); grows */
     int n_alloc;       /* particles the arrays hold */

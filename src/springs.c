@@ -40,6 +40,7 @@ void springs_free(stf_springs *s)
     free(s->count2);
     free(s->mark);
     free(s->gain);
+    free(s->complete);
     memset(s, 0, sizeof *s);
 }
 
@@ -55,9 +56,12 @@ int springs_resize(stf_springs *s, int n)
     if (m) s->mark = m;
     double *g = realloc(s->gain, (size_t)cap * sizeof *g);
     if (g) s->gain = g;
-    if (!c || !c2 || !m || !g || alloc_rows(s, cap, s->stride) != 0) return -1;
+    uint8_t *cm = realloc(s->complete, (size_t)cap * sizeof *cm);
+    if (cm) s->complete = cm;
+    if (!c || !c2 || !m || !g || !cm || alloc_rows(s, cap, s->stride) != 0) return -1;
     /* Rows keep their stride, so existing lists stay where they are. */
     memset(s->count + s->n_alloc, 0, (size_t)(cap - s->n_alloc) * sizeof *c);
+    memset(s->complete + s->n_alloc, 0, (size_t)(cap - s->n_alloc) * sizeof *cm);
     for (size_t k = 0; k < (size_t)cap * (size_t)s->nthreads; k++) s->mark[k] = -1;
     s->n_alloc = cap;
     return 0;
@@ -130,7 +134,7 @@ typedef struct spring_chunk {
 
 typedef struct spring_acc {
     double d[3], ksum, csum;
-    int cnt;
+    int cnt, nbrk; /* springs kept (and new), springs broken or not made */
 } spring_acc;
 
 /* A thread's springs that did not fit their particle's row (stride slots), in order; they
@@ -225,8 +229,12 @@ static void spring_block(const stf_fluid *f, int i, const int32_t *js, const dou
     /* in order, in locals (acc, np and nL might alias the block as far as the compiler knows) */
     double d0 = acc->d[0], d1 = acc->d[1], d2 = acc->d[2], ksum = acc->ksum, csum = acc->csum;
     int cnt = acc->cnt;
+    int nbrk = acc->nbrk;
     for (int e = 0; e < m; e++) {
-        if (ch->brk[e] != 0) continue;
+        if (ch->brk[e] != 0) {
+            nbrk++;
+            continue;
+        }
         if (cnt < stride) {
             np[cnt] = js[e];
             nL[cnt] = ch->L[e];
@@ -240,6 +248,7 @@ static void spring_block(const stf_fluid *f, int i, const int32_t *js, const dou
     }
     acc->d[0] = d0, acc->d[1] = d1, acc->d[2] = d2, acc->ksum = ksum, acc->csum = csum;
     acc->cnt = cnt;
+    acc->nbrk = nbrk;
 }
 
 /* Rebuilds particle i's spring list in place (Alg. 4) and, in the same pass over the same
@@ -248,7 +257,12 @@ static void spring_block(const stf_fluid *f, int i, const int32_t *js, const dou
  * order). A new spring starts at its current length, so it carries no force on creation
  * (mag = 0; its history stiffness counts in the mean). Returns its new count; the springs
  * past the stride go to sp. In place, the row is read and written while in cache: against
- * a second buffer the spring stage took 15-19% longer (one thread, bowling ball, d = 150). */
+ * a second buffer the spring stage took 15-19% longer (one thread, bowling ball, d = 150).
+ *
+ * The search for new springs (every neighbour not yet a partner) is skipped when it cannot
+ * find one: when after the last step every neighbour of i was a partner (complete: no spring
+ * broke and none was refused) and i gained no neighbour since (the grid's filter says so),
+ * every neighbour now is an old partner. Skipping it changes no result. */
 static int adjust_one(stf_fluid *f, int i, int64_t stamp, int64_t *mark, double dt,
                       double khist_scale, spring_chunk *ch, spring_spill *sp)
 {
@@ -258,7 +272,8 @@ static int adjust_one(stf_fluid *f, int i, int64_t stamp, int64_t *mark, double 
     const int32_t *op = np;
     const double *oL = nL;
     int nold = s->count[i];
-    spring_acc acc = {{0, 0, 0}, 0, 0, 0};
+    int search = !s->complete[i] || f->grid.gained[i] || s->search_always;
+    spring_acc acc = {{0, 0, 0}, 0, 0, 0, 0};
     if (i + 2 < f->n) { /* the rows of a particle two ahead: a few lines each, 384 B apart */
         const char *pp = (const char *)(op + 2 * (size_t)s->stride);
         const char *pl = (const char *)(oL + 2 * (size_t)s->stride);
@@ -266,13 +281,14 @@ static int adjust_one(stf_fluid *f, int i, int64_t stamp, int64_t *mark, double 
         for (int b = 0; b < s->count[i + 2] * 8; b += 64) __builtin_prefetch(pl + b);
         grid_prefetch(&f->grid, i + 2, f->n);
     }
-    for (int k = 0; k < nold; k++) mark[op[k]] = stamp;
+    if (search)
+        for (int k = 0; k < nold; k++) mark[op[k]] = stamp;
     for (int k0 = 0; k0 < nold; k0 += SPRING_CHUNK)
         spring_block(f, i, op + k0, oL + k0, nold - k0 < SPRING_CHUNK ? nold - k0 : SPRING_CHUNK,
                      dt, khist_scale, ch, np, nL, s->stride, &acc, sp);
     const int32_t *nb = grid_row(&f->grid, i);
     int m = 0;
-    for (int k = 0; k < f->grid.count[i]; k++) {
+    for (int k = 0; k < (search ? f->grid.count[i] : 0); k++) {
         int j = nb[k];
         if (mark[j] == stamp) continue;
         ch->jn[m++] = j;
@@ -285,6 +301,7 @@ static int adjust_one(stf_fluid *f, int i, int64_t stamp, int64_t *mark, double 
     for (int a = 0; a < 3; a++) f->dx[3 * i + a] = acc.d[a];
     if (f->khist_mean) f->khist_mean[i] = acc.cnt > 0 ? (float)(acc.ksum / acc.cnt) : 0.0f;
     s->gain[i] = acc.csum;
+    s->complete[i] = acc.nbrk == 0;
     return acc.cnt;
 }
 
@@ -419,6 +436,7 @@ int springs_permute(stf_springs *s, const int32_t *perm, const int32_t *inv, int
             c++;
         }
         s->count2[i] = c;
+        s->complete[i] = 0; /* searched again at the next step */
     }
     int32_t *tp = s->partner, *tc = s->count;
     double *tr = s->rest;

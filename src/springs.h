@@ -21,6 +21,10 @@ typedef struct stf_springs {
     int nthreads;
     double *gain;     /* n_alloc: sum of the spring gains dt^2 k (1 - L/h) of the particle,
                          then its saturation factor (springs.c, saturated_one) */
+    uint8_t *complete; /* n_alloc: 1 when after the last step every neighbour of the particle
+                          was a partner (springs.c, adjust_one) */
+    int search_always; /* 1: search every neighbour row for new springs, complete or not
+                          (tests: the skip changes no result) */
     long saturated_steps; /* steps in which the gains were scaled down (sum > 1 somewhere) */
     double max_gain;  /* largest sum of gains in the last step */
 } stf_springs;

@@ -8,12 +8,16 @@
  *  effects off  an effect that is off allocates nothing; k_hist = 0 reduces the history
  *               springs exactly to Clavet's model (bit-identical run).
  *  determinism  the same scene gives the same state hash, with 1 or 2 threads.
+ *  spring search  a particle marked complete has a spring to every neighbour, and skipping
+ *               the search for new springs where nothing can be found gives the same run as
+ *               searching everywhere (bit-identical), while skipping most searches.
  *  dt           a blob dropped on a floor (history memory given in seconds) converges as dt
  *               shrinks: the centre-of-mass trajectory changes less from dt/2 to dt/4 than
  *               from dt to dt/2.
  */
 #define _POSIX_C_SOURCE 200809L
 #include "stf.h"
+#include "fluid.h" /* springs and grid internals (test_spring_search) */
 #include "test_util.h"
 
 #include <omp.h>
@@ -131,6 +135,62 @@ static void test_momentum(void)
     free(v);
     free(v_init);
     stf_fluid_destroy(f);
+}
+
+/* -------------------------------------------------------------- spring search */
+
+/* The momentum test's sheared, jittered lattice: springs form and break all the time. */
+static stf_fluid *shear_lattice(int always)
+{
+    stf_fluid_def d = stf_default_fluid_def();
+    d.effects = STF_EFFECT_VISCOSITY | STF_EFFECT_PRESSURE | STF_EFFECT_SPRINGS |
+                STF_EFFECT_HISTORY;
+    stf_fluid *f = make_fluid(&d);
+    if (!f) return NULL;
+    rng_state = 0x1234567ull;
+    const double s = d.spacing;
+    for (int c = 0; c < 9; c++)
+        for (int b = 0; b < 9; b++)
+            for (int a = 0; a < 9; a++) {
+                double x[3] = {a * s, b * s, c * s};
+                double v[3] = {4.0 * (x[2] - 0.04) + 0.3 * urand(), 0.3 * urand(), 0.3 * urand()};
+                stf_fluid_add_particle(f, x, v);
+            }
+    f->springs.search_always = always;
+    return f;
+}
+
+static void test_spring_search(void)
+{
+    stf_fluid *f = shear_lattice(0), *g = shear_lattice(1);
+    if (!f || !g) return;
+    long complete = 0, searched = 0, seen = 0, wrong = 0;
+    for (int step = 0; step < 150; step++) {
+        if (run(f, 1, 1e-3) != 0 || run(g, 1, 1e-3) != 0) break;
+        /* complete: every neighbour (this step's rows) is a partner after the step */
+        const stf_springs *sp = &f->springs;
+        for (int i = 0; i < f->n; i++) {
+            seen++;
+            searched += !sp->complete[i] || f->grid.gained[i];
+            if (!sp->complete[i]) continue;
+            complete++;
+            const int32_t *row = grid_row(&f->grid, i), *p = sp->partner + (size_t)i * sp->stride;
+            for (int k = 0; k < f->grid.count[i]; k++) {
+                int found = 0;
+                for (int m = 0; m < sp->count[i] && !found; m++) found = p[m] == row[k];
+                wrong += !found;
+            }
+        }
+    }
+    CHECK(wrong == 0, "%ld neighbours of complete particles have no spring", wrong);
+    CHECK(complete > seen / 4, "only %ld of %ld particle-steps complete", complete, seen);
+    CHECK(searched < seen, "every search was made (%ld of %ld)", searched, seen);
+    CHECK(stf_fluid_hash(f) == stf_fluid_hash(g), "skipping searches changed the run");
+    CHECK(stf_fluid_spring_count(f) > 0, "no springs");
+    printf("spring search: %ld of %ld particle-steps searched (the rest skipped), %ld complete\n",
+           searched, seen, complete);
+    stf_fluid_destroy(f);
+    stf_fluid_destroy(g);
 }
 
 /* ---------------------------------------------------------------- containment */
@@ -436,6 +496,7 @@ int main(int argc, char **argv)
     stf_set_threads(1);
     double t0 = omp_get_wtime();
     test_momentum();
+    test_spring_search();
     double t1 = omp_get_wtime();
     test_containment();
     double t2 = omp_get_wtime();
