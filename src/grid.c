@@ -279,11 +279,11 @@ __attribute__((target("avx2"))) static int find_candidates_avx2(const double *x,
         int is_self = _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(j, self)));
         int near = _mm256_movemask_ps(_mm256_cmp_ps(d2, vlim, _CMP_LT_OQ)) & ~is_self;
         __m128i lo = _mm256_castsi256_si128(j), hi = _mm256_extracti128_si256(j, 1);
-        _mm_storeu_si128((__m128i *)(out + cnt),
-                         _mm_shuffle_epi8(lo, _mm_loadu_si128((const __m128i *)compress4[near & 15])));
+        __m128i clo = _mm_loadu_si128((const __m128i *)compress4[near & 15]),
+                chi = _mm_loadu_si128((const __m128i *)compress4[near >> 4]);
+        _mm_storeu_si128((__m128i *)(out + cnt), _mm_shuffle_epi8(lo, clo));
         cnt += __builtin_popcount((unsigned)near & 15u);
-        _mm_storeu_si128((__m128i *)(out + cnt),
-                         _mm_shuffle_epi8(hi, _mm_loadu_si128((const __m128i *)compress4[near >> 4])));
+        _mm_storeu_si128((__m128i *)(out + cnt), _mm_shuffle_epi8(hi, chi));
         cnt += __builtin_popcount((unsigned)near >> 4);
     }
     return cnt;

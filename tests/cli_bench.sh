@@ -2,8 +2,9 @@
 # cli_bench.sh - `stf bench` end to end on the bowling ball at a coarse spacing (about 1.1K
 # particles, a few steps), so it checks behaviour, never speed (speed targets are in the
 # benchmark's own output, not in tests):
-#  - effects (--repeat 2: the fastest of two runs a row): every effect of the scene turned off in turn; an effect that is off costs no
-#    stage time and no storage (the command itself fails otherwise), and the rows are there;
+#  - effects (--repeat 2: the fastest of two runs a row): every effect of the scene turned
+#    off in turn; an effect that is off costs no stage time and no storage (the command
+#    itself fails otherwise), and the rows are there;
 #  - accuracy --knobs history: writes the CSV (one row per setting) and a PNG; the reference
 #    (full history) has zero error; the sum-of-exponentials history with 16 terms is closer to
 #    the full history than a 10-step window is;
@@ -18,7 +19,8 @@ export OMP_NUM_THREADS=1
 
 "$STF" bench effects "$SCENE" --set fluid.spacing=0.04 --steps 3 --threads 1 --repeat 2 >effects.out 2>effects.err \
     || { fail "bench effects exited $?"; cat effects.err >&2; }
-grep -q "^# stf bench effects .*fastest of 2 run(s) a row" effects.out || fail "bench effects: --repeat 2 not in the header"
+grep -q "^# stf bench effects .*fastest of 2 run(s) a row" effects.out \
+    || fail "bench effects: --repeat 2 not in the header"
 for row in "all (scene)" "no gravity" "no viscosity" "no pressure" "no springs+history" "no history" \
            "no boundary_stick"; do
     grep -q "^$row " effects.out || fail "bench effects: no row '$row'"

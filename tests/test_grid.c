@@ -295,7 +295,8 @@ static int wrong_gained(const stf_grid *g, int n, const int32_t *old, const int 
         const int32_t *row = grid_row(g, i);
         for (int k = 0; k < g->count[i] && !new_one; k++) {
             int found = 0;
-            for (int m = 0; m < ocount[i] && !found; m++) found = old[(size_t)i * cap + m] == row[k];
+            for (int m = 0; m < ocount[i] && !found; m++)
+                found = old[(size_t)i * cap + m] == row[k];
             new_one = !found;
         }
         int want = rebuilt || new_one;
