@@ -388,9 +388,12 @@ int springs_step(stf_fluid *f, double dt)
     }
     int rc = 0;
     for (int t = 0; t < nt; t++) rc |= spills[t].failed ? -1 : 0;
-    if (rc == 0 && most > s->stride) { /* widen the rows, then append what did not fit */
-        int old = s->stride;
-        for (int i = 0; i < n; i++) s->count[i] = s->count2[i] < old ? s->count2[i] : old;
+    /* the rows hold the first `stride` springs of each new list; the new counts are count2
+       once what did not fit is appended (out of memory: the counts of what the rows hold, a
+       consistent state for a step that fails) */
+    int old = s->stride;
+    for (int i = 0; i < n; i++) s->count[i] = s->count2[i] < old ? s->count2[i] : old;
+    if (rc == 0 && most > old) { /* widen the rows, then append what did not fit */
         rc = widen(s, n, most + most / 2);
         for (int t = 0; t < nt && rc == 0; t++)
             for (size_t k = 0; k < spills[t].len; k++) { /* each particle's in order */
@@ -403,9 +406,6 @@ int springs_step(stf_fluid *f, double dt)
     for (int t = 0; t < nt; t++) free(spills[t].e);
     free(spills);
     if (rc != 0) return -1;
-    int32_t *tc = s->count; /* the new counts */
-    s->count = s->count2;
-    s->count2 = tc;
     if (most_gain > 1.0) { /* saturate (see saturated_one); the common case costs nothing more */
 #pragma omp parallel for schedule(static)
         for (int i = 0; i < n; i++) {
