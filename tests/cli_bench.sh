@@ -10,6 +10,8 @@
 #    the full history than a 10-step window is;
 #  - grid: two rows (the scene's particles and about 10x as many), candidates per particle
 #    more than neighbours, and the neighbours per particle within 20% of each other;
+#  - scaling with a fixed dt: two rows, one substep per step, the per-substep ratio equal to
+#    the per-step one;
 #  - table1 refuses a missing scene with exit 2, and an unknown benchmark is exit 2;
 #  - history.terms is refused (exit 2, key named) without mode soe and outside [1, 64].
 # usage: bash cli_bench.sh STF_BINARY PROJECT_DIR
@@ -54,6 +56,13 @@ awk '!/^#/ && $1 ~ /^[0-9]/ { rows++; if (!($3 > $4 && $4 > 0)) bad = 1; nb[rows
 [ $? -eq 2 ] || fail "table1 with a missing scene: want exit 2"
 "$STF" bench nope >/dev/null 2>&1
 [ $? -eq 2 ] || fail "unknown benchmark: want exit 2"
+# scaling: two rows; the substeps per step are at least 1, and the per-substep ratio is the
+# per-step ratio divided by the ratio of substeps
+"$STF" bench scaling "$SCENE" --set fluid.spacing=0.04 --set dt_control=fixed --steps 3 --warmup 2 \
+    --threads 1 --repeat 2 >scaling.out 2>scaling.err || { fail "bench scaling exited $?"; cat scaling.err >&2; }
+awk '!/^#/ && $1 ~ /^[0-9]/ { rows++; if (!($7 == 1.00 && $8 == $6 && $2 > 0)) bad = 1 }
+     END { if (rows != 2 || bad) exit 1 }' scaling.out \
+    || { fail "bench scaling (fixed dt): rows wrong"; cat scaling.out >&2; }
 "$STF" bench scaling "$SCENE" --repeat 0 >/dev/null 2>rep.err
 [ $? -eq 2 ] && grep -q -- "--repeat" rep.err || fail "scaling --repeat 0: want exit 2 naming --repeat"
 # the soe history's parameter: only with mode soe, and in [1, 64]

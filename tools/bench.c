@@ -141,6 +141,7 @@ typedef struct timing {
     int history_steps;
     long rebuilds;                 /* neighbour candidate rebuilds in the timed steps */
     double neighbours;             /* neighbours within h per particle at the end */
+    double substeps;               /* fluid substeps per step in the timed steps (adaptive dt) */
 } timing;
 
 static const char *const effect_names[6] = {"gravity", "viscosity", "pressure", "springs",
@@ -185,7 +186,7 @@ static int time_scene(const char *path, const char *text, const stf_override *ov
         hh->pushed = hh->cap;
     double before[STAGE_COUNT];
     memcpy(before, sim->fluid->stage_seconds, sizeof before);
-    long rebuilds0 = sim->fluid->grid.rebuilds;
+    long rebuilds0 = sim->fluid->grid.rebuilds, substeps0 = sim->substeps;
     double t0 = omp_get_wtime(), c0 = cpu_seconds();
     for (int s = 0; s < steps && rc == 0; s++) rc = stf_sim_step(sim);
     double wall = omp_get_wtime() - t0, cpu = cpu_seconds() - c0;
@@ -202,6 +203,7 @@ static int time_scene(const char *path, const char *text, const stf_override *ov
         for (int e = 0; e < 6; e++) t->bytes[e] = stf_fluid_effect_bytes(sim->fluid, 1u << e);
         t->history_steps = stf_fluid_history_steps(sim->fluid);
         t->rebuilds = sim->fluid->grid.rebuilds - rebuilds0;
+        t->substeps = (double)(sim->substeps - substeps0) / steps;
         long nb = 0;
         for (int i = 0; i < t->particles; i++) nb += sim->fluid->grid.count[i];
         t->neighbours = t->particles > 0 ? (double)nb / t->particles : 0;
@@ -431,8 +433,9 @@ static int bench_scaling(const bench_args *a)
     printf("# stf bench scaling %s: %d timed steps after %d warm-up steps, %d run(s) of each\n",
            a->scene, a->steps, a->warmup, a->repeat);
     print_load();
-    printf("%12s %9s %10s %10s %14s %8s %9s %6s %7s |", "spacing m", "n", "step ms", "cpu ms",
-           "particles/s", "x time", "rebuilds", "nbrs", "springs");
+    printf("%12s %9s %10s %10s %14s %8s %9s %9s %9s %6s %7s |", "spacing m", "n", "step ms",
+           "cpu ms", "particles/s", "x time", "substeps", "x substep", "rebuilds", "nbrs",
+           "springs");
     for (int k = 0; k < STAGE_COUNT; k++) printf(" %9s", stage_names[k]);
     printf("\n");
     /* each size --repeat times, interleaved (a slow spell of the machine hits both); the
@@ -452,19 +455,22 @@ static int bench_scaling(const bench_args *a)
         }
     for (int k = 0; k < 2; k++) {
         const timing *t = &best[k];
-        printf("%12.5g %9d %10.2f %10.2f %14.3g %8.2f %9ld %6.1f %7.1f |", spk[k], t->particles,
-               t->step_ms, t->cpu_ms, 1e3 * t->particles / t->step_ms,
-               t->step_ms / best[0].step_ms, t->rebuilds, t->neighbours,
-               2.0 * (double)t->springs / t->particles);
+        printf("%12.5g %9d %10.2f %10.2f %14.3g %8.2f %9.2f %9.2f %9ld %6.1f %7.1f |", spk[k],
+               t->particles, t->step_ms, t->cpu_ms, 1e3 * t->particles / t->step_ms,
+               t->step_ms / best[0].step_ms, t->substeps,
+               t->step_ms / t->substeps / (best[0].step_ms / best[0].substeps), t->rebuilds,
+               t->neighbours, 2.0 * (double)t->springs / t->particles);
         for (int st = 0; st < STAGE_COUNT; st++) printf(" %9.2f", t->stage_ms[st]);
         printf("\n");
     }
     if (a->repeat > 1)
         printf("# %d runs of each, the fastest shown; slowest step: %.2f and %.2f ms\n", a->repeat,
                slowest[0], slowest[1]);
-    printf("# x time: step time / the first row's (linear cost: the particle ratio); rebuilds:\n"
-           "# neighbour candidate rebuilds in the timed steps; nbrs, springs: per particle at the\n"
-           "# end (the work of each neighbour and spring pass); then wall ms per step by stage\n");
+    printf("# x time: step time / the first row's (linear cost: the particle ratio); substeps:\n"
+           "# fluid substeps per step (adaptive dt: the finer spacing's CFL limit splits more\n"
+           "# steps); x substep: the same ratio per substep; rebuilds: neighbour candidate\n"
+           "# rebuilds in the timed steps; nbrs, springs: per particle at the end (the work of\n"
+           "# each neighbour and spring pass); then wall ms per step by stage\n");
     return 0;
 }
 
