@@ -236,7 +236,7 @@ static void spring_block(const stf_fluid *f, int i, const int32_t *js, const dou
             continue;
         }
         if (cnt < stride) {
-            np[cnt] = js[e];
+            if (np + cnt != js + e) np[cnt] = js[e]; /* in place and nothing broke: it is there */
             nL[cnt] = ch->L[e];
         } else spill(sp, i, js[e], ch->L[e]);
         cnt++;
