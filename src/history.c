@@ -36,6 +36,14 @@ enum { HIST_TBLOCK = 16, HIST_CHUNK = 64, HIST_RUN = 16, HIST_NEWER = 1536 };
 
 /* The exact ring takes the time-blocked sum: a window longer than a block, in steady state
  * (every sum has all d + 1 lags with the interior weights). */
+/* Rows [rows, n) take the particles [rows, n) (new ones: the rows in use always hold the
+ * particles 0 .. rows - 1 in some order, so these are free). */
+static void add_rows(stf_history *h, int n)
+{
+    for (int r = h->rows; r < n; r++) h->part[r] = r;
+    if (n > h->rows) h->rows = n;
+}
+
 static int blocked_sum(const stf_history *h)
 {
     return !h->terms && h->window > HIST_TBLOCK && h->pushed - 1 >= h->cap;
@@ -67,6 +75,7 @@ void history_free(stf_history *h)
     free(h->soe_T);
     free(h->soe_v0);
     free(h->ring);
+    free(h->part);
     free(h->w);
     free(h->wf);
     free(h->D);
@@ -104,10 +113,14 @@ int history_resize(stf_history *h, int n)
     float *ring = reshape_ring(h, h->cap, cap, h->ring ? h->cap : 0, 0); /* slots stay put */
     if (!ring) return -1;
     double *D = history_grow_zeroed(h->D, (size_t)h->n_alloc * 3, (size_t)cap * 3, sizeof *D);
-    if (!D) {
+    int *part = D ? realloc(h->part, (size_t)cap * sizeof *part) : NULL;
+    if (D) h->D = D;
+    if (!part) {
         free(ring);
         return -1;
     }
+    for (int r = h->n_alloc; r < cap; r++) part[r] = -1;
+    h->part = part;
     free(h->ring);
     h->ring = ring;
     h->D = D;
@@ -140,11 +153,18 @@ int history_push(stf_history *h, const double *v, int n)
         return 0;
     }
     if (h->window == 0 && h->pushed >= h->cap && grow_slots(h) != 0) return -1;
+    if (n > h->n_alloc) return -1;
+    add_rows(h, n);
     h->head = (h->head + 1) % h->cap;
     h->pushed++;
     float *slot = h->ring + (size_t)h->head * (size_t)h->n_alloc * 3;
+    const int *part = h->part;
 #pragma omp parallel for schedule(static)
-    for (int i = 0; i < 3 * n; i++) slot[i] = (float)v[i];
+    for (int r = 0; r < h->rows; r++) { /* rows past n (none in use) keep zeros */
+        int p = part[r];
+        for (int k = 0; k < 3; k++)
+            slot[3 * (size_t)r + k] = p < n ? (float)v[3 * (size_t)p + k] : 0.0f;
+    }
     return 0;
 }
 
@@ -348,9 +368,9 @@ static void old_chunk(const stf_history *h, int simd, int j0, int lo, int cnt, i
 }
 
 /* old_j for j in [j0, HIST_TBLOCK) of the block starting at sample n0 (= newest - j0). */
-static int fill_old(stf_history *h, long n0, int j0, int n)
+static int fill_old(stf_history *h, long n0, int j0)
 {
-    int len = 3 * n;
+    int len = 3 * h->rows;
     if (h->n_old != h->n_alloc) { /* a valid old covers every particle the ring holds */
         h->old_n0 = -1;
         free(h->old);
@@ -371,13 +391,23 @@ static int fill_old(stf_history *h, long n0, int j0, int n)
     return 0;
 }
 
-/* D = old_j + sum_{k=j..0} w_k v_{t-k} for the elements [lo, lo + cnt): the block's own
+/* The sums of the rows' elements [lo, lo + cnt) (lo, cnt multiples of 3) into D, by
+ * particle (particles past n, none in use, are left out). */
+static void store_rows(const stf_history *h, const double *acc, int lo, int cnt, int n)
+{
+    for (int r = lo / 3; r < (lo + cnt) / 3; r++) {
+        int p = h->part[r];
+        if (p < n)
+            for (int k = 0; k < 3; k++) h->D[3 * (size_t)p + k] = acc[3 * r - lo + k];
+    }
+}
+
+/* acc = old_j + sum_{k=j..0} w_k v_{t-k} for the elements [lo, lo + cnt): the block's own
  * samples, oldest first, streamed slot by slot while the sums stay in L1. */
 static STF_VECTOR_CLONES void newer_part(const stf_history *h, int j, const double *old, int lo,
-                                         int cnt, double *D)
+                                         int cnt, double *restrict acc)
 {
     size_t row = (size_t)h->n_alloc * 3;
-    double *restrict acc = D + lo; /* in L1 while the samples stream past */
     for (int e = 0; e < cnt; e++) acc[e] = old[lo + e];
     for (int k = j; k >= 0; k--) {
         int s = h->head - k;
@@ -392,20 +422,39 @@ static int derivative_blocked(stf_history *h, int n)
 {
     long t = h->pushed - 1, n0 = t - t % HIST_TBLOCK;
     int j = (int)(t - n0);
-    if (h->old_n0 != n0 && fill_old(h, n0, j, n) != 0) return -1;
-    int len = 3 * n, nblocks = (len + HIST_NEWER - 1) / HIST_NEWER;
+    if (h->old_n0 != n0 && fill_old(h, n0, j) != 0) return -1;
+    int len = 3 * h->rows, nblocks = (len + HIST_NEWER - 1) / HIST_NEWER;
     const double *old = h->old + (size_t)j * (size_t)h->n_old * 3;
 #pragma omp parallel for schedule(static)
     for (int b = 0; b < nblocks; b++) {
         int lo = b * HIST_NEWER, cnt = len - lo < HIST_NEWER ? len - lo : HIST_NEWER;
-        newer_part(h, j, old, lo, cnt, h->D);
+        double acc[HIST_NEWER]; /* by row, in L1 while the samples stream past */
+        newer_part(h, j, old, lo, cnt, acc);
+        store_rows(h, acc, lo, cnt, n);
     }
     return 0;
+}
+
+/* acc = sum_{k=0..m} w_k v_{t-k} for the elements [lo, lo + cnt), w_m = w_end: the lags in
+ * the same order whatever the blocks (or threads), from lag 0 to the end point. */
+static STF_VECTOR_CLONES void direct_sum(const stf_history *h, int m, double w_end, int lo,
+                                         int cnt, double *restrict acc)
+{
+    size_t row = (size_t)h->n_alloc * 3;
+    for (int e = 0; e < cnt; e++) acc[e] = 0.0;
+    for (int k = 0; k <= m; k++) {
+        int s = h->head - k;
+        if (s < 0) s += h->cap;
+        const float *r = h->ring + (size_t)s * row + lo;
+        double wk = k < m ? h->w[k] : w_end;
+        for (int e = 0; e < cnt; e++) acc[e] += wk * r[e];
+    }
 }
 
 void history_derivative(stf_history *h, int n)
 {
     if (h->terms) return; /* the soe push computed D */
+    if (n > h->rows) n = h->rows; /* (a particle without samples: its D is left as it was) */
     /* the blocked sum (falls back to the direct one below when out of memory) */
     if (blocked_sum(h) && derivative_blocked(h, n) == 0) return;
     /* m = the oldest lag present. While fewer than cap samples exist, the oldest one is p = 0
@@ -414,46 +463,37 @@ void history_derivative(stf_history *h, int n)
     int m = last < h->cap ? (int)last : h->cap - 1;
     double w_end = last < h->cap ? stf_history_weight(h->q, 0, last) : h->w[m];
     if (last == 0) w_end = 1.0;
-    size_t row = (size_t)h->n_alloc * 3;
-    int head = h->head, cap = h->cap, len = 3 * n;
-    const double *w = h->w;
-    /* Blocks of particles: each block's sums stay in L1 while every slot streams past. The
-       sum of each component runs over the lags in the same order whatever the blocks (or
-       threads), from lag 0 to the end point. */
+    int len = 3 * h->rows;
+    /* Blocks of rows: each block's sums stay in L1 while every slot streams past. */
     int nblocks = (len + HIST_NEWER - 1) / HIST_NEWER;
 #pragma omp parallel for schedule(static)
     for (int b = 0; b < nblocks; b++) {
         int lo = b * HIST_NEWER, cnt = len - lo < HIST_NEWER ? len - lo : HIST_NEWER;
-        double *restrict acc = h->D + lo; /* in L1 while the samples stream past */
-        for (int e = 0; e < cnt; e++) acc[e] = 0.0;
-        for (int k = 0; k <= m; k++) {
-            int s = head - k;
-            if (s < 0) s += cap;
-            const float *r = h->ring + (size_t)s * row + lo;
-            double wk = k < m ? w[k] : w_end;
-            for (int e = 0; e < cnt; e++) acc[e] += wk * r[e];
-        }
+        double acc[HIST_NEWER]; /* by row, in L1 while the samples stream past */
+        direct_sum(h, m, w_end, lo, cnt, acc);
+        store_rows(h, acc, lo, cnt, n);
     }
 }
 
-/* Reorders the n rows of 3 elements of each of `rows` arrays of T, `stride` elements apart,
- * in place (each row is copied to a scratch row, then gathered back), and zeroes each row past
- * the n rows: particles added later have a zero past. One scratch row per thread, not a
+/* Reorders the m rows of 3 elements of each of `rows` arrays of T, `stride` elements apart,
+ * in place, row i taking row perm[i] < m for i < n <= m (each array is copied to a scratch
+ * array, then gathered back), and zeroes each array past the n rows: particles added later
+ * have a zero past. One scratch row per thread, not a
  * second copy of everything (the ring is 12 n d bytes: a new one every re-sort cost more in
  * page faults than the permutation itself). 0 / -1. */
 #define PERMUTE_ROWS(T, name)                                                                 \
-    static int name(T *a, size_t stride, int rows, const int *perm, int n)                    \
+    static int name(T *a, size_t stride, int rows, const int *perm, int n, int m)             \
     {                                                                                         \
         int failed = 0;                                                                       \
         _Pragma("omp parallel reduction(| : failed)")                                          \
         {                                                                                     \
-            T *tmp = malloc((size_t)n * 3 * sizeof *tmp);                                     \
+            T *tmp = malloc((size_t)m * 3 * sizeof *tmp);                                     \
             if (!tmp) failed = 1;                                                             \
             _Pragma("omp for schedule(static)")                                               \
             for (int s = 0; s < rows; s++) {                                                  \
                 if (!tmp) continue;                                                           \
                 T *row = a + (size_t)s * stride;                                              \
-                memcpy(tmp, row, (size_t)n * 3 * sizeof *tmp);                                \
+                memcpy(tmp, row, (size_t)m * 3 * sizeof *tmp);                                \
                 for (int i = 0; i < n; i++)                                                   \
                     for (int c = 0; c < 3; c++) row[3 * i + c] = tmp[3 * (size_t)perm[i] + c]; \
                 memset(row + (size_t)n * 3, 0, (stride - (size_t)n * 3) * sizeof *row);       \
@@ -465,20 +505,74 @@ void history_derivative(stf_history *h, int n)
 PERMUTE_ROWS(float, permute_rows_f)
 PERMUTE_ROWS(double, permute_rows_d)
 
+/* Particles removed (fewer than the rows in use): the rows are gathered so that row i holds
+ * particle i again (perm taken through the rows), the rows past n zeroed. */
+static int permute_compact(stf_history *h, const int *perm, int n)
+{
+    int rows = h->rows, *src = malloc((size_t)(2 * rows + 1) * sizeof *src);
+    if (!src) return -1;
+    int *row_of = src + rows; /* row_of[particle] */
+    for (int r = 0; r < rows; r++) row_of[h->part[r]] = r;
+    for (int i = 0; i < n; i++) src[i] = row_of[perm[i]];
+    int rc = permute_rows_f(h->ring, (size_t)h->n_alloc * 3, h->cap, src, n, rows);
+    /* old is per row: reordered, it equals a recomputed one */
+    if (rc == 0 && h->old_n0 >= 0 &&
+        permute_rows_d(h->old, (size_t)h->n_old * 3, HIST_TBLOCK, src, n, rows) != 0)
+        h->old_n0 = -1; /* recomputed at the next step */
+    free(src);
+    if (rc != 0) return -1;
+    for (int r = 0; r < rows; r++) h->part[r] = r < n ? r : -1;
+    h->rows = n;
+    return 0;
+}
+
 int history_permute(stf_history *h, const int *perm, int n)
 {
     if (h->terms) return history_soe_permute(h, perm, n);
-    if (permute_rows_f(h->ring, (size_t)h->n_alloc * 3, h->cap, perm, n) != 0) return -1;
-    /* old is per element: reordered, it equals a recomputed one */
-    if (h->old_n0 >= 0 && permute_rows_d(h->old, (size_t)h->n_old * 3, HIST_TBLOCK, perm, n) != 0)
-        h->old_n0 = -1; /* recomputed at the next step */
+    if (n > h->n_alloc) return -1;
+    add_rows(h, n); /* particles added since the last push */
+    if (n < h->rows) return permute_compact(h, perm, n);
+    /* A re-sort: only the row -> particle map changes; the ring (12 n d bytes) and old stay
+       where they are (moving them every re-sort cost as much as the sums). */
+    int *inv = malloc((size_t)(n + 1) * sizeof *inv);
+    if (!inv) return -1;
+    for (int i = 0; i < n; i++) inv[perm[i]] = i;
+    for (int r = 0; r < h->rows; r++) h->part[r] = inv[h->part[r]];
+    free(inv);
+    return 0;
+}
+
+void history_ring_get(const stf_history *h, float *dst, int n)
+{
+    size_t row = (size_t)n * 3, orow = (size_t)h->n_alloc * 3;
+    memset(dst, 0, (size_t)h->cap * row * sizeof *dst);
+    for (int s = 0; s < h->cap; s++)
+        for (int r = 0; r < h->rows; r++)
+            if (h->part[r] < n)
+                memcpy(dst + (size_t)s * row + 3 * (size_t)h->part[r],
+                       h->ring + (size_t)s * orow + 3 * (size_t)r, 3 * sizeof *dst);
+}
+
+int history_ring_set(stf_history *h, const float *src, int n)
+{
+    if (n > h->n_alloc) return -1;
+    size_t row = (size_t)n * 3, orow = (size_t)h->n_alloc * 3;
+    for (int r = 0; r < h->n_alloc; r++) h->part[r] = r < n ? r : -1;
+    h->rows = n;
+    for (int s = 0; s < h->cap; s++) {
+        float *dst = h->ring + (size_t)s * orow;
+        memcpy(dst, src + (size_t)s * row, row * sizeof *dst);
+        memset(dst + row, 0, (orow - row) * sizeof *dst);
+    }
+    h->old_n0 = -1;
     return 0;
 }
 
 size_t history_bytes(const stf_history *h)
 {
     if (h->terms) return history_soe_bytes(h);
-    return (size_t)h->n_alloc * ((size_t)h->cap * 3 * sizeof(float) + 3 * sizeof(double)) +
+    return (size_t)h->n_alloc *
+               ((size_t)h->cap * 3 * sizeof(float) + 3 * sizeof(double) + sizeof(int)) +
            (size_t)h->cap * sizeof(double) +
            (h->wf ? (size_t)(h->cap + HIST_TBLOCK) * sizeof(float) : 0) +
            (size_t)h->n_old * 3 * HIST_TBLOCK * sizeof(double);

@@ -4,7 +4,9 @@
  * a ring (float32, 12 bytes a vector as in the paper's Table 1); the weighted sum is taken once
  * per particle per step, so a spring needs only |D_i - D_j| (DESIGN.md, "History springs").
  * The ring is stored by time slot (slot s holds all particles' velocities of one step), so
- * the weighted sum streams through memory in a loop the compiler vectorizes. */
+ * the weighted sum streams through memory in a loop the compiler vectorizes. Row r of a slot
+ * holds particle part[r]'s velocity: a re-sort renames the rows' particles instead of moving
+ * the ring (12 n d bytes). */
 #ifndef STF_HISTORY_H
 #define STF_HISTORY_H
 
@@ -15,7 +17,9 @@ typedef struct stf_history {
     int window;   /* d: lags kept beyond the newest sample; 0 for full history */
     int cap;      /* ring slots per particle */
     int n_alloc;  /* particles the ring holds */
-    float *ring;  /* cap slots of 3 n_alloc velocities (slot-major) */
+    float *ring;  /* cap slots of 3 n_alloc velocities (slot-major), by row */
+    int *part;    /* n_alloc: the particle whose samples row r holds, -1 none */
+    int rows;     /* rows in use: rows 0 .. rows - 1 hold particles 0 .. rows - 1 in some order */
     long pushed;  /* samples pushed since the start */
     int head;     /* slot of the newest sample */
     double *w;    /* cap interior weights by lag: w[0] = 1, w[k] = a_{n-k,n} for 0 < k < n */
@@ -24,7 +28,7 @@ typedef struct stf_history {
     /* window mode, time blocks (history.c, history_derivative): the parts of the next
      * HIST_TBLOCK sums that come from samples older than the block, taken in one pass over
      * the ring at the block's start (a pure function of the ring: recomputed, never saved) */
-    double *old;  /* HIST_TBLOCK * 3 n_old */
+    double *old;  /* HIST_TBLOCK * 3 n_old, by row */
     int n_old;    /* particles old was sized for */
     long old_n0;  /* sample index of the block old holds (-1: none) */
     /* sum-of-exponentials mode (history_soe.c); terms == 0 for the exact ring */
@@ -57,8 +61,14 @@ double history_error_bound(const stf_history *h);
  * C code (all give the same bits); -1 leaves it. Process-wide, default 2 (tests compare the
  * levels). Returns the level in use (the highest the CPU has, at most `level`). */
 int history_simd(int level);
-/* Reorders particles: new index i takes old index perm[i]. */
+/* Reorders particles: new index i takes old index perm[i] (n fewer than before: the others
+ * are removed). */
 int history_permute(stf_history *h, const int *perm, int n);
+/* The ring as a checkpoint stores it: cap slots of 3 n floats, slot s as the ring's slot s,
+ * particles in their order (particles without a sample: zero). */
+void history_ring_get(const stf_history *h, float *dst, int n);
+/* Loads that; n <= the particles the ring holds. 0 / -1. */
+int history_ring_set(stf_history *h, const float *src, int n);
 size_t history_bytes(const stf_history *h);
 /* Full history: grows the ring to cap slots per particle (doubling, as pushes do), for a
  * checkpoint that had that many. 0 / -1. */
