@@ -30,9 +30,22 @@ static void fill_weights(stf_history *h, int from)
         h->w[k] = stf_history_weight(h->q, 1, (long)k + 1);
 }
 
-/* Window mode, time blocks of HIST_TBLOCK samples (see derivative_blocked); HIST_NEWER: the
- * elements a thread sums at a time (also in the direct sum, history_derivative). */
-enum { HIST_TBLOCK = 16, HIST_CHUNK = 64, HIST_RUN = 16, HIST_NEWER = 1536 };
+/* Window mode, time blocks of h->tblock samples (see derivative_blocked), a multiple of
+ * HIST_SUB up to HIST_TBLOCK; HIST_NEWER: the elements a thread sums at a time (also in the
+ * direct sum, history_derivative). */
+enum { HIST_SUB = 16, HIST_TBLOCK = 64, HIST_CHUNK = 64, HIST_RUN = 16, HIST_NEWER = 1536 };
+
+/* The block length for a window of d steps: the ring is read once a block, the block's
+ * older parts kept (8 bytes a sum, tblock of them per element): a long block for a long
+ * window, where reading the ring (12 n d bytes) costs more than the arithmetic. */
+#ifndef HIST_BLOCK_DIV
+#define HIST_BLOCK_DIV 64
+#endif
+static int block_len(int d)
+{
+    int q = d / HIST_BLOCK_DIV;
+    return HIST_SUB * (q < 1 ? 1 : q > HIST_TBLOCK / HIST_SUB ? HIST_TBLOCK / HIST_SUB : q);
+}
 
 /* The exact ring takes the time-blocked sum: a window longer than a block, in steady state
  * (every sum has all d + 1 lags with the interior weights). */
@@ -46,7 +59,7 @@ static void add_rows(stf_history *h, int n)
 
 static int blocked_sum(const stf_history *h)
 {
-    return !h->terms && h->window > HIST_TBLOCK && h->pushed - 1 >= h->cap;
+    return !h->terms && h->window > HIST_SUB && h->pushed - 1 >= h->cap;
 }
 
 int history_init(stf_history *h, double q, int window, int n)
@@ -59,6 +72,7 @@ int history_init(stf_history *h, double q, int window, int n)
     h->w = calloc((size_t)h->cap, sizeof *h->w);
     if (!h->w) return -1;
     fill_weights(h, 1);
+    h->tblock = block_len(window);
     if (window > 0) { /* followed by HIST_TBLOCK zeros (old_chunk reads past lag d) */
         h->wf = calloc((size_t)h->cap + HIST_TBLOCK, sizeof *h->wf);
         if (!h->wf) return -1;
@@ -273,13 +287,13 @@ __attribute__((target("avx2,fma"))) static void old_kernel_avx2_4(const float *c
 __attribute__((target("avx2,fma,avx512f"))) static void
 old_kernel_avx512_16(const float *const *ps, int e0, int num, const float *wl, double *c)
 {
-    __m512 a[HIST_TBLOCK];
-    for (int j = 0; j < HIST_TBLOCK; j++) a[j] = _mm512_setzero_ps();
+    __m512 a[HIST_SUB];
+    for (int j = 0; j < HIST_SUB; j++) a[j] = _mm512_setzero_ps();
     for (int i = 0; i < num; i++, wl--) {
         __m512 v = _mm512_loadu_ps(ps[i] + e0);
-        for (int j = 0; j < HIST_TBLOCK; j++) a[j] = _mm512_fmadd_ps(_mm512_set1_ps(wl[j]), v, a[j]);
+        for (int j = 0; j < HIST_SUB; j++) a[j] = _mm512_fmadd_ps(_mm512_set1_ps(wl[j]), v, a[j]);
     }
-    for (int j = 0; j < HIST_TBLOCK; j++) {
+    for (int j = 0; j < HIST_SUB; j++) {
         double *cj = c + j * HIST_CHUNK;
         __m256 lo = _mm512_castps512_ps256(a[j]);
         __m256 hi = _mm256_castpd_ps(_mm512_extractf64x4_pd(_mm512_castps_pd(a[j]), 1));
@@ -328,6 +342,20 @@ double history_error_bound(const stf_history *h)
     return flt + dbl * (1.0 + flt);
 }
 
+/* Adds the runs of samples ps (num of them, oldest first, the oldest at lag L from the
+ * block's start: weight w_{j+L-i} for sum j and sample i) into the sums c of the rows j of
+ * bands (HIST_SUB rows) b0 and on, elements [0, cnt) of a chunk. */
+static void add_runs(const stf_history *h, int simd, const float *const *ps, int num, int L,
+                     int b0, int cnt, double (*c)[HIST_CHUNK])
+{
+    const int *group = old_group[simd];
+    for (int b = b0 * HIST_SUB; b < h->tblock; b += HIST_SUB)
+        for (int g = 0; g < 3 && group[g] < HIST_SUB; g++)
+            for (int e = 0; e < cnt; e += OLD_EB)
+                old_run(simd, ps, e, num, group[g + 1] - group[g], h->wf + L + b + group[g],
+                        &c[b + group[g]][e]);
+}
+
 /* more: the same thread takes the chunk after next (its samples are prefetched into L2
  * while this one is summed: a chunk's 4 lines of a slot are 12 n bytes from the next slot's,
  * too far apart for the hardware prefetcher; one chunk ahead is too late). The kernel reads
@@ -336,13 +364,10 @@ double history_error_bound(const stf_history *h)
 static void old_chunk(const stf_history *h, int simd, int j0, int lo, int cnt, int more,
                       double *old, size_t stride)
 {
-    int d = h->cap - 1;
+    int d = h->cap - 1, b0 = j0 / HIST_SUB;
     size_t row = (size_t)h->n_alloc * 3;
     double c[HIST_TBLOCK][HIST_CHUNK];
-    const int *group = old_group[simd];
-    int g0 = 0; /* the groups with a j >= j0 */
-    while (group[g0 + 1] <= j0) g0++;
-    for (int j = group[g0]; j < HIST_TBLOCK; j++)
+    for (int j = b0 * HIST_SUB; j < h->tblock; j++)
         for (int e = 0; e < HIST_CHUNK; e++) c[j][e] = 0.0;
     /* samples n0 - L, L = d - j0 .. 1, oldest first (the oldest is in slot head + 1), in runs
        of lags (16 r, 16 r + 16]; lag from sample n0 + j: j + L */
@@ -357,17 +382,31 @@ static void old_chunk(const stf_history *h, int simd, int j0, int lo, int cnt, i
                     __builtin_prefetch(ps[i] + 2 * HIST_CHUNK + e, 0, 2);
             s = s + 1 == h->cap ? 0 : s + 1;
         }
-        for (int g = g0; g < 3 && group[g] < HIST_TBLOCK; g++)
-            for (int e = 0; e < cnt; e += OLD_EB)
-                old_run(simd, ps, e, num, group[g + 1] - group[g], h->wf + L + group[g],
-                        &c[group[g]][e]);
+        add_runs(h, simd, ps, num, L, b0, cnt, c);
         L -= num;
     }
-    for (int j = j0; j < HIST_TBLOCK; j++)
+    for (int j = j0; j < h->tblock; j++)
         memcpy(old + (size_t)j * stride + lo, c[j], (size_t)cnt * sizeof(double));
 }
 
-/* old_j for j in [j0, HIST_TBLOCK) of the block starting at sample n0 (= newest - j0). */
+/* The run of sub-block q - 1 of the block (its HIST_SUB samples, from sample n0 + 16 (q-1)
+ * in slot s0) into old_j, j >= 16 q, for a chunk. */
+static void mid_chunk(const stf_history *h, int simd, int q, int s0, int lo, int cnt,
+                      double *old, size_t stride)
+{
+    size_t row = (size_t)h->n_alloc * 3;
+    double c[HIST_TBLOCK][HIST_CHUNK];
+    for (int j = q * HIST_SUB; j < h->tblock; j++)
+        memcpy(c[j], old + (size_t)j * stride + lo, (size_t)cnt * sizeof(double));
+    const float *ps[HIST_SUB];
+    for (int i = 0; i < HIST_SUB; i++)
+        ps[i] = h->ring + (size_t)((s0 + i) % h->cap) * row + lo;
+    add_runs(h, simd, ps, HIST_SUB, -(q - 1) * HIST_SUB, q, cnt, c);
+    for (int j = q * HIST_SUB; j < h->tblock; j++)
+        memcpy(old + (size_t)j * stride + lo, c[j], (size_t)cnt * sizeof(double));
+}
+
+/* old_j for j in [j0, tblock) of the block starting at sample n0 (= newest - j0). */
 static int fill_old(stf_history *h, long n0, int j0)
 {
     int len = 3 * h->rows;
@@ -376,7 +415,7 @@ static int fill_old(stf_history *h, long n0, int j0)
         free(h->old);
         /* zeroed: a particle added in the middle of a block (past the n filled for) has a
            zero past, as its ring rows do, and +0 is what a pass would give it */
-        h->old = calloc((size_t)HIST_TBLOCK * (size_t)h->n_alloc * 3, sizeof *h->old);
+        h->old = calloc((size_t)h->tblock * (size_t)h->n_alloc * 3, sizeof *h->old);
         h->n_old = h->old ? h->n_alloc : 0;
         if (!h->old) return -1;
     }
@@ -388,7 +427,25 @@ static int fill_old(stf_history *h, long n0, int j0)
         old_chunk(h, simd, j0, lo, cnt, c + 2 < nchunks, h->old, stride);
     }
     h->old_n0 = n0;
+    h->old_mid = 0;
     return 0;
+}
+
+/* Adds sub-block old_mid + 1's run to old (at the start of sub-block old_mid + 2). */
+static void add_mid(stf_history *h, long t, long n0)
+{
+    int q = h->old_mid + 1, len = 3 * h->rows;
+    long age = t - (n0 + (long)(q - 1) * HIST_SUB); /* of the sub-block's oldest sample */
+    int s0 = (int)(((long)h->head - age) % h->cap);
+    if (s0 < 0) s0 += h->cap;
+    size_t stride = (size_t)h->n_old * 3;
+    int nchunks = (len + HIST_CHUNK - 1) / HIST_CHUNK, simd = history_simd(-1);
+#pragma omp parallel for schedule(static)
+    for (int c = 0; c < nchunks; c++) {
+        int lo = c * HIST_CHUNK, cnt = len - lo < HIST_CHUNK ? len - lo : HIST_CHUNK;
+        mid_chunk(h, simd, q, s0, lo, cnt, h->old, stride);
+    }
+    h->old_mid = q;
 }
 
 /* The sums of the rows' elements [lo, lo + cnt) (lo, cnt multiples of 3) into D, by
@@ -409,7 +466,7 @@ static STF_VECTOR_CLONES void newer_part(const stf_history *h, int j, const doub
 {
     size_t row = (size_t)h->n_alloc * 3;
     for (int e = 0; e < cnt; e++) acc[e] = old[lo + e];
-    for (int k = j; k >= 0; k--) {
+    for (int k = j % HIST_SUB; k >= 0; k--) {
         int s = h->head - k;
         if (s < 0) s += h->cap;
         const float *r = h->ring + (size_t)s * row + lo;
@@ -420,9 +477,10 @@ static STF_VECTOR_CLONES void newer_part(const stf_history *h, int j, const doub
 
 static int derivative_blocked(stf_history *h, int n)
 {
-    long t = h->pushed - 1, n0 = t - t % HIST_TBLOCK;
+    long t = h->pushed - 1, n0 = t - t % h->tblock;
     int j = (int)(t - n0);
     if (h->old_n0 != n0 && fill_old(h, n0, j) != 0) return -1;
+    while (h->old_mid < j / HIST_SUB) add_mid(h, t, n0); /* the sub-blocks before j's */
     int len = 3 * h->rows, nblocks = (len + HIST_NEWER - 1) / HIST_NEWER;
     const double *old = h->old + (size_t)j * (size_t)h->n_old * 3;
 #pragma omp parallel for schedule(static)
@@ -517,7 +575,7 @@ static int permute_compact(stf_history *h, const int *perm, int n)
     int rc = permute_rows_f(h->ring, (size_t)h->n_alloc * 3, h->cap, src, n, rows);
     /* old is per row: reordered, it equals a recomputed one */
     if (rc == 0 && h->old_n0 >= 0 &&
-        permute_rows_d(h->old, (size_t)h->n_old * 3, HIST_TBLOCK, src, n, rows) != 0)
+        permute_rows_d(h->old, (size_t)h->n_old * 3, h->tblock, src, n, rows) != 0)
         h->old_n0 = -1; /* recomputed at the next step */
     free(src);
     if (rc != 0) return -1;
@@ -575,7 +633,7 @@ size_t history_bytes(const stf_history *h)
                ((size_t)h->cap * 3 * sizeof(float) + 3 * sizeof(double) + sizeof(int)) +
            (size_t)h->cap * sizeof(double) +
            (h->wf ? (size_t)(h->cap + HIST_TBLOCK) * sizeof(float) : 0) +
-           (size_t)h->n_old * 3 * HIST_TBLOCK * sizeof(double);
+           (size_t)h->n_old * 3 * (size_t)h->tblock * sizeof(double);
 }
 
 int history_set_slots(stf_history *h, int cap)

@@ -31,6 +31,8 @@ typedef struct stf_history {
     double *old;  /* HIST_TBLOCK * 3 n_old, by row */
     int n_old;    /* particles old was sized for */
     long old_n0;  /* sample index of the block old holds (-1: none) */
+    int tblock;   /* the block's length (samples), a multiple of 16 */
+    int old_mid;  /* the block's sub-blocks of 16 samples whose sums old includes */
     /* sum-of-exponentials mode (history_soe.c); terms == 0 for the exact ring */
     int terms;      /* K exponentials */
     double *soe_r;  /* K decay factors per step, exp(-lambda_j) */
