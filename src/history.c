@@ -33,19 +33,12 @@ static void fill_weights(stf_history *h, int from)
 /* Window mode, time blocks of h->tblock samples (see derivative_blocked), a multiple of
  * HIST_SUB up to HIST_TBLOCK; HIST_NEWER: the elements a thread sums at a time (also in the
  * direct sum, history_derivative). */
-enum { HIST_SUB = 16, HIST_TBLOCK = 64, HIST_CHUNK = 64, HIST_RUN = 16, HIST_NEWER = 1536 };
+enum { HIST_SUB = 16, HIST_TBLOCK = 32, HIST_CHUNK = 64, HIST_RUN = 16, HIST_NEWER = 1536 };
 
 /* The block length for a window of d steps: the ring is read once a block, the block's
  * older parts kept (8 bytes a sum, tblock of them per element): a long block for a long
  * window, where reading the ring (12 n d bytes) costs more than the arithmetic. */
-#ifndef HIST_BLOCK_DIV
-#define HIST_BLOCK_DIV 64
-#endif
-static int block_len(int d)
-{
-    int q = d / HIST_BLOCK_DIV;
-    return HIST_SUB * (q < 1 ? 1 : q > HIST_TBLOCK / HIST_SUB ? HIST_TBLOCK / HIST_SUB : q);
-}
+static int block_len(int d) { return d >= 256 ? HIST_TBLOCK : HIST_SUB; }
 
 /* The exact ring takes the time-blocked sum: a window longer than a block, in steady state
  * (every sum has all d + 1 lags with the interior weights). */
@@ -111,8 +104,11 @@ void *history_grow_zeroed(void *p, size_t old_n, size_t new_n, size_t size)
 static float *reshape_ring(const stf_history *h, int slots, int n_new, int keep, int first)
 {
     size_t row = (size_t)n_new * 3, orow = (size_t)h->n_alloc * 3;
-    float *ring = calloc((size_t)slots * row, sizeof *ring);
+    /* zeroed by hand: calloc's untouched pages would be mapped at the first read (one fault
+       a page, inside a step) and, while never written, read as one shared zero page */
+    float *ring = malloc((size_t)slots * row * sizeof *ring + 1);
     if (!ring) return NULL;
+    memset(ring, 0, (size_t)slots * row * sizeof *ring);
     for (int s = 0; s < keep; s++)
         memcpy(ring + (size_t)s * row, h->ring + (size_t)((first + s) % h->cap) * orow,
                orow * sizeof *ring);
@@ -222,10 +218,10 @@ int history_push(stf_history *h, const double *v, int n)
 enum { OLD_JB = 8, OLD_EB = 16 };
 static const int old_group[3][4] = {{0, 8, 16, 16}, {0, 6, 12, 16}, {0, 16, 16, 16}}; /* by simd */
 
-/* c[j][e] (j < jb, rows HIST_CHUNK apart; e < OLD_EB) += the float sum over i < num of
+/* c[j][e] (j < jb, rows cs apart; e < OLD_EB) += the float sum over i < num of
  * wl[j - i] * ps[i][e]: the samples of a run, oldest first. The plain C version. */
 static void old_kernel(const float *const *ps, int e0, int num, int jb, const float *wl,
-                       double *c)
+                       double *c, size_t cs)
 {
     float a[OLD_JB][OLD_EB] = {{0}};
     for (int i = 0; i < num; i++, wl--) {
@@ -234,7 +230,7 @@ static void old_kernel(const float *const *ps, int e0, int num, int jb, const fl
             for (int e = 0; e < OLD_EB; e++) a[j][e] = fmaf(wl[j], p[e], a[j][e]);
     }
     for (int j = 0; j < jb; j++)
-        for (int e = 0; e < OLD_EB; e++) c[j * HIST_CHUNK + e] += (double)a[j][e];
+        for (int e = 0; e < OLD_EB; e++) c[(size_t)j * cs + (size_t)e] += (double)a[j][e];
 }
 
 #if defined(__x86_64__) && defined(__GNUC__)
@@ -245,7 +241,7 @@ static void old_kernel(const float *const *ps, int e0, int num, int jb, const fl
  * add (_mm256_mul_ps, _mm256_add_ps; no FMA), the run's sums then converted to double
  * (exact) and added: the same roundings as the plain version. */
 __attribute__((target("avx2,fma"), always_inline)) static inline void
-old_kernel_vec(const float *const *ps, int e0, int num, int jb, const float *wl, double *c)
+old_kernel_vec(const float *const *ps, int e0, int num, int jb, const float *wl, double *c, size_t cs)
 {
     __m256 a[OLD_JB], b[OLD_JB];
     for (int j = 0; j < jb; j++) a[j] = b[j] = _mm256_setzero_ps();
@@ -259,7 +255,7 @@ old_kernel_vec(const float *const *ps, int e0, int num, int jb, const float *wl,
         }
     }
     for (int j = 0; j < jb; j++) {
-        double *cj = c + j * HIST_CHUNK;
+        double *cj = c + (size_t)j * cs;
         __m128 lo[2] = {_mm256_castps256_ps128(a[j]), _mm256_castps256_ps128(b[j])};
         __m128 hi[2] = {_mm256_extractf128_ps(a[j], 1), _mm256_extractf128_ps(b[j], 1)};
         for (int k = 0; k < 2; k++) {
@@ -271,21 +267,21 @@ old_kernel_vec(const float *const *ps, int e0, int num, int jb, const float *wl,
     }
 }
 __attribute__((target("avx2,fma"))) static void old_kernel_avx2_6(const float *const *ps, int e0,
-                                                              int num, const float *wl, double *c)
+                                                              int num, const float *wl, double *c, size_t cs)
 {
-    old_kernel_vec(ps, e0, num, 6, wl, c);
+    old_kernel_vec(ps, e0, num, 6, wl, c, cs);
 }
 __attribute__((target("avx2,fma"))) static void old_kernel_avx2_4(const float *const *ps, int e0,
-                                                              int num, const float *wl, double *c)
+                                                              int num, const float *wl, double *c, size_t cs)
 {
-    old_kernel_vec(ps, e0, num, 4, wl, c);
+    old_kernel_vec(ps, e0, num, 4, wl, c, cs);
 }
 /* AVX-512: one 512-bit vector of OLD_EB elements per future sample, all HIST_TBLOCK of them
  * (16 sums in registers, one sample load and 16 weight broadcasts per lag). On the AMD Zen 4
  * this was measured on, a 512-bit multiply-add is split in two like two 256-bit ones, but
  * issues as one instruction: 1.6-2x the 256-bit kernel's rate (which the front end limits). */
 __attribute__((target("avx2,fma,avx512f"))) static void
-old_kernel_avx512_16(const float *const *ps, int e0, int num, const float *wl, double *c)
+old_kernel_avx512_16(const float *const *ps, int e0, int num, const float *wl, double *c, size_t cs)
 {
     __m512 a[HIST_SUB];
     for (int j = 0; j < HIST_SUB; j++) a[j] = _mm512_setzero_ps();
@@ -294,7 +290,7 @@ old_kernel_avx512_16(const float *const *ps, int e0, int num, const float *wl, d
         for (int j = 0; j < HIST_SUB; j++) a[j] = _mm512_fmadd_ps(_mm512_set1_ps(wl[j]), v, a[j]);
     }
     for (int j = 0; j < HIST_SUB; j++) {
-        double *cj = c + j * HIST_CHUNK;
+        double *cj = c + (size_t)j * cs;
         __m256 lo = _mm512_castps512_ps256(a[j]);
         __m256 hi = _mm256_castpd_ps(_mm512_extractf64x4_pd(_mm512_castps_pd(a[j]), 1));
         _mm512_storeu_pd(cj, _mm512_add_pd(_mm512_loadu_pd(cj), _mm512_cvtps_pd(lo)));
@@ -305,15 +301,15 @@ old_kernel_avx512_16(const float *const *ps, int e0, int num, const float *wl, d
 
 /* One run of the samples into c for the future samples [jg, jg + jb), elements e0 ... */
 static void old_run(int simd, const float *const *ps, int e0, int num, int jb, const float *wl,
-                    double *c)
+                    double *c, size_t cs)
 {
 #ifdef HIST_X86
-    if (simd == 2) old_kernel_avx512_16(ps, e0, num, wl, c);
-    else if (simd == 1 && jb == 6) old_kernel_avx2_6(ps, e0, num, wl, c);
-    else if (simd == 1) old_kernel_avx2_4(ps, e0, num, wl, c);
+    if (simd == 2) old_kernel_avx512_16(ps, e0, num, wl, c, cs);
+    else if (simd == 1 && jb == 6) old_kernel_avx2_6(ps, e0, num, wl, c, cs);
+    else if (simd == 1) old_kernel_avx2_4(ps, e0, num, wl, c, cs);
     else
 #endif
-        old_kernel(ps, e0, num, jb, wl, c);
+        old_kernel(ps, e0, num, jb, wl, c, cs);
 }
 
 static int simd_wanted = 2;
@@ -346,14 +342,14 @@ double history_error_bound(const stf_history *h)
  * block's start: weight w_{j+L-i} for sum j and sample i) into the sums c of the rows j of
  * bands (HIST_SUB rows) b0 and on, elements [0, cnt) of a chunk. */
 static void add_runs(const stf_history *h, int simd, const float *const *ps, int num, int L,
-                     int b0, int cnt, double (*c)[HIST_CHUNK])
+                     int b0, int cnt, double *c, size_t cs)
 {
     const int *group = old_group[simd];
     for (int b = b0 * HIST_SUB; b < h->tblock; b += HIST_SUB)
         for (int g = 0; g < 3 && group[g] < HIST_SUB; g++)
             for (int e = 0; e < cnt; e += OLD_EB)
                 old_run(simd, ps, e, num, group[g + 1] - group[g], h->wf + L + b + group[g],
-                        &c[b + group[g]][e]);
+                        c + (size_t)(b + group[g]) * cs + (size_t)e, cs);
 }
 
 /* more: the same thread takes the chunk after next (its samples are prefetched into L2
@@ -361,14 +357,13 @@ static void add_runs(const stf_history *h, int simd, const float *const *ps, int
  * too far apart for the hardware prefetcher; one chunk ahead is too late). The kernel reads
  * up to OLD_EB - 1 floats past cnt, inside the ring's row (3 n_alloc >= 3 n + 48), and their
  * sums are not stored. */
-static void old_chunk(const stf_history *h, int simd, int j0, int lo, int cnt, int more,
-                      double *old, size_t stride)
+static void old_chunk(const stf_history *h, int simd, int j0, int lo, int cnt, int more)
 {
     int d = h->cap - 1, b0 = j0 / HIST_SUB;
-    size_t row = (size_t)h->n_alloc * 3;
-    double c[HIST_TBLOCK][HIST_CHUNK];
+    size_t row = (size_t)h->n_alloc * 3, cs = (size_t)h->n_old * 3;
+    double *c = h->old + lo;
     for (int j = b0 * HIST_SUB; j < h->tblock; j++)
-        for (int e = 0; e < HIST_CHUNK; e++) c[j][e] = 0.0;
+        memset(c + (size_t)j * cs, 0, (size_t)cnt * sizeof *c);
     /* samples n0 - L, L = d - j0 .. 1, oldest first (the oldest is in slot head + 1), in runs
        of lags (16 r, 16 r + 16]; lag from sample n0 + j: j + L */
     int s = h->head + 1 == h->cap ? 0 : h->head + 1;
@@ -382,28 +377,25 @@ static void old_chunk(const stf_history *h, int simd, int j0, int lo, int cnt, i
                     __builtin_prefetch(ps[i] + 2 * HIST_CHUNK + e, 0, 2);
             s = s + 1 == h->cap ? 0 : s + 1;
         }
-        add_runs(h, simd, ps, num, L, b0, cnt, c);
+        add_runs(h, simd, ps, num, L, b0, cnt, c, cs);
         L -= num;
     }
-    for (int j = j0; j < h->tblock; j++)
-        memcpy(old + (size_t)j * stride + lo, c[j], (size_t)cnt * sizeof(double));
 }
 
 /* The run of sub-block q - 1 of the block (its HIST_SUB samples, from sample n0 + 16 (q-1)
  * in slot s0) into old_j, j >= 16 q, for a chunk. */
-static void mid_chunk(const stf_history *h, int simd, int q, int s0, int lo, int cnt,
-                      double *old, size_t stride)
+static void mid_chunk(const stf_history *h, int simd, int q, int s0, int lo, int cnt)
 {
-    size_t row = (size_t)h->n_alloc * 3;
-    double c[HIST_TBLOCK][HIST_CHUNK];
-    for (int j = q * HIST_SUB; j < h->tblock; j++)
-        memcpy(c[j], old + (size_t)j * stride + lo, (size_t)cnt * sizeof(double));
+    size_t row = (size_t)h->n_alloc * 3, cs = (size_t)h->n_old * 3;
     const float *ps[HIST_SUB];
     for (int i = 0; i < HIST_SUB; i++)
         ps[i] = h->ring + (size_t)((s0 + i) % h->cap) * row + lo;
-    add_runs(h, simd, ps, HIST_SUB, -(q - 1) * HIST_SUB, q, cnt, c);
-    for (int j = q * HIST_SUB; j < h->tblock; j++)
-        memcpy(old + (size_t)j * stride + lo, c[j], (size_t)cnt * sizeof(double));
+    add_runs(h, simd, ps, HIST_SUB, -(q - 1) * HIST_SUB, q, cnt, h->old + lo, cs);
+}
+
+static size_t old_count(const stf_history *h, int n_alloc)
+{
+    return (size_t)n_alloc * 3 * (size_t)h->tblock;
 }
 
 /* old_j for j in [j0, tblock) of the block starting at sample n0 (= newest - j0). */
@@ -415,16 +407,15 @@ static int fill_old(stf_history *h, long n0, int j0)
         free(h->old);
         /* zeroed: a particle added in the middle of a block (past the n filled for) has a
            zero past, as its ring rows do, and +0 is what a pass would give it */
-        h->old = calloc((size_t)h->tblock * (size_t)h->n_alloc * 3, sizeof *h->old);
+        h->old = calloc(old_count(h, h->n_alloc), sizeof *h->old);
         h->n_old = h->old ? h->n_alloc : 0;
         if (!h->old) return -1;
     }
-    size_t stride = (size_t)h->n_old * 3;
     int nchunks = (len + HIST_CHUNK - 1) / HIST_CHUNK, simd = history_simd(-1);
 #pragma omp parallel for schedule(static)
     for (int c = 0; c < nchunks; c++) {
         int lo = c * HIST_CHUNK, cnt = len - lo < HIST_CHUNK ? len - lo : HIST_CHUNK;
-        old_chunk(h, simd, j0, lo, cnt, c + 2 < nchunks, h->old, stride);
+        old_chunk(h, simd, j0, lo, cnt, c + 2 < nchunks);
     }
     h->old_n0 = n0;
     h->old_mid = 0;
@@ -438,12 +429,11 @@ static void add_mid(stf_history *h, long t, long n0)
     long age = t - (n0 + (long)(q - 1) * HIST_SUB); /* of the sub-block's oldest sample */
     int s0 = (int)(((long)h->head - age) % h->cap);
     if (s0 < 0) s0 += h->cap;
-    size_t stride = (size_t)h->n_old * 3;
     int nchunks = (len + HIST_CHUNK - 1) / HIST_CHUNK, simd = history_simd(-1);
 #pragma omp parallel for schedule(static)
     for (int c = 0; c < nchunks; c++) {
         int lo = c * HIST_CHUNK, cnt = len - lo < HIST_CHUNK ? len - lo : HIST_CHUNK;
-        mid_chunk(h, simd, q, s0, lo, cnt, h->old, stride);
+        mid_chunk(h, simd, q, s0, lo, cnt);
     }
     h->old_mid = q;
 }
@@ -461,11 +451,12 @@ static void store_rows(const stf_history *h, const double *acc, int lo, int cnt,
 
 /* acc = old_j + sum_{k=j..0} w_k v_{t-k} for the elements [lo, lo + cnt): the block's own
  * samples, oldest first, streamed slot by slot while the sums stay in L1. */
-static STF_VECTOR_CLONES void newer_part(const stf_history *h, int j, const double *old, int lo,
-                                         int cnt, double *restrict acc)
+static STF_VECTOR_CLONES void newer_part(const stf_history *h, int j, int lo, int cnt,
+                                         double *restrict acc)
 {
     size_t row = (size_t)h->n_alloc * 3;
-    for (int e = 0; e < cnt; e++) acc[e] = old[lo + e];
+    const double *old = h->old + (size_t)j * (size_t)h->n_old * 3 + lo;
+    for (int e = 0; e < cnt; e++) acc[e] = old[e];
     for (int k = j % HIST_SUB; k >= 0; k--) {
         int s = h->head - k;
         if (s < 0) s += h->cap;
@@ -482,12 +473,11 @@ static int derivative_blocked(stf_history *h, int n)
     if (h->old_n0 != n0 && fill_old(h, n0, j) != 0) return -1;
     while (h->old_mid < j / HIST_SUB) add_mid(h, t, n0); /* the sub-blocks before j's */
     int len = 3 * h->rows, nblocks = (len + HIST_NEWER - 1) / HIST_NEWER;
-    const double *old = h->old + (size_t)j * (size_t)h->n_old * 3;
 #pragma omp parallel for schedule(static)
     for (int b = 0; b < nblocks; b++) {
         int lo = b * HIST_NEWER, cnt = len - lo < HIST_NEWER ? len - lo : HIST_NEWER;
         double acc[HIST_NEWER]; /* by row, in L1 while the samples stream past */
-        newer_part(h, j, old, lo, cnt, acc);
+        newer_part(h, j, lo, cnt, acc);
         store_rows(h, acc, lo, cnt, n);
     }
     return 0;
@@ -561,7 +551,6 @@ void history_derivative(stf_history *h, int n)
         return failed ? -1 : 0;                                                               \
     }
 PERMUTE_ROWS(float, permute_rows_f)
-PERMUTE_ROWS(double, permute_rows_d)
 
 /* Particles removed (fewer than the rows in use): the rows are gathered so that row i holds
  * particle i again (perm taken through the rows), the rows past n zeroed. */
@@ -573,11 +562,10 @@ static int permute_compact(stf_history *h, const int *perm, int n)
     for (int r = 0; r < rows; r++) row_of[h->part[r]] = r;
     for (int i = 0; i < n; i++) src[i] = row_of[perm[i]];
     int rc = permute_rows_f(h->ring, (size_t)h->n_alloc * 3, h->cap, src, n, rows);
-    /* old is per row: reordered, it equals a recomputed one */
-    if (rc == 0 && h->old_n0 >= 0 &&
-        permute_rows_d(h->old, (size_t)h->n_old * 3, h->tblock, src, n, rows) != 0)
-        h->old_n0 = -1; /* recomputed at the next step */
     free(src);
+    if (h->old) /* recomputed at the next step (rows past n: zero, as a pass gives them) */
+        memset(h->old, 0, old_count(h, h->n_old) * sizeof *h->old);
+    h->old_n0 = -1;
     if (rc != 0) return -1;
     for (int r = 0; r < rows; r++) h->part[r] = r < n ? r : -1;
     h->rows = n;
@@ -633,7 +621,7 @@ size_t history_bytes(const stf_history *h)
                ((size_t)h->cap * 3 * sizeof(float) + 3 * sizeof(double) + sizeof(int)) +
            (size_t)h->cap * sizeof(double) +
            (h->wf ? (size_t)(h->cap + HIST_TBLOCK) * sizeof(float) : 0) +
-           (size_t)h->n_old * 3 * (size_t)h->tblock * sizeof(double);
+           (h->old ? old_count(h, h->n_old) * sizeof(double) : 0);
 }
 
 int history_set_slots(stf_history *h, int cap)
