@@ -40,8 +40,6 @@ enum { HIST_SUB = 16, HIST_TBLOCK = 32, HIST_CHUNK = 64, HIST_RUN = 16, HIST_NEW
  * window, where reading the ring (12 n d bytes) costs more than the arithmetic. */
 static int block_len(int d) { return d >= 256 ? HIST_TBLOCK : HIST_SUB; }
 
-/* The exact ring takes the time-blocked sum: a window longer than a block, in steady state
- * (every sum has all d + 1 lags with the interior weights). */
 /* Rows [rows, n) take the particles [rows, n) (new ones: the rows in use always hold the
  * particles 0 .. rows - 1 in some order, so these are free). */
 static void add_rows(stf_history *h, int n)
@@ -50,6 +48,8 @@ static void add_rows(stf_history *h, int n)
     if (n > h->rows) h->rows = n;
 }
 
+/* The exact ring takes the time-blocked sum: a window longer than a sub-block, in steady
+ * state (every sum has all d + 1 lags with the interior weights). */
 static int blocked_sum(const stf_history *h)
 {
     return !h->terms && h->window > HIST_SUB && h->pushed - 1 >= h->cap;
@@ -179,42 +179,48 @@ int history_push(stf_history *h, const double *v, int n)
 }
 
 /* Window mode in steady state (every sum has all d + 1 lags with the interior weights), in
- * blocks of HIST_TBLOCK samples aligned on the sample index: the sum for sample t = n0 + j
- * of its block is
- *     D_t = old_j + sum_{k=0..j} w_k v_{t-k},   old_j = sum_{k=j+1..d} w_k v_{t-k},
- * where old_j only uses samples older than n0. All old_j of a block are taken in one pass
- * over the ring (each sample read once per block instead of once per step: the direct sum
- * reads the whole 12 n (d+1) byte ring every step and is bound by memory bandwidth). Each
- * old_j adds its terms in the order of the samples, oldest first, and a pass started in
- * the middle of a block (after a re-sort, a resize, a resume) adds the same terms in the same
- * order: the sums do not depend on when old was taken, nor on the threads. */
-/* old_j (j >= j0) for the elements [lo, lo + cnt) of the block, into old (stride apart).
- * A product of a HIST_TBLOCK x d Toeplitz matrix of weights (w_{j+L}) by the d x cnt
- * samples (v_{n0-L}), blocked as a matrix product: the HIST_TBLOCK x cnt sums c of a chunk
- * stay in L1, and a micro-kernel (old_kernel) keeps OLD_JB x OLD_EB of them in registers
- * while it runs over a run of HIST_RUN samples.
+ * blocks of T = tblock samples (16, or 32 for d >= 256) aligned on the sample index, each
+ * made of sub-blocks of 16: the sum for sample t = n0 + j of its block is
+ *     D_t = old_j + mid_j + sum_{k=0..j mod 16} w_k v_{t-k},
+ *     old_j = sum_{k>j} w_k v_{t-k} over the samples older than n0,
+ *     mid_j = the same over the block's earlier sub-blocks (none for j < 16).
+ * All old_j of a block are taken in one pass over the ring at its start (each sample read
+ * once per block instead of once per step: the direct sum reads the whole 12 n (d+1) byte
+ * ring every step and is bound by memory bandwidth; a block of 32 halves what a block of 16
+ * reads, and the sub-blocks keep the last sum short); each sub-block's terms are added to the
+ * later old_j when it is complete (add_mid), from its 16 samples, still in cache.
+ * old_j (j >= j0) for the elements [lo, lo + cnt): a product of a T x d Toeplitz matrix of
+ * weights (w_{j+L}) by the d x cnt samples (v_{n0-L}), blocked as a matrix product: the T x
+ * cnt sums of a chunk (rows of old) stay in L1/L2, and a micro-kernel (old_kernel) keeps up
+ * to 16 x 16 of them in registers while it runs over a run of HIST_RUN samples.
  *
  * Precision. The samples are float32 (the ring), and so are the products and their sums
- * within a run: each run's float sum is then added, exactly converted, into the double c
+ * within a run: each run's float sum is then added, exactly converted, into the double old_j
  * (float arithmetic does twice the multiply-adds per instruction; the sum is bound by them).
- * Error of old_j against the same sum in exact arithmetic, with u = 2^-24 (float) and
- * S = sum |w_k v_k| over its terms: the weight rounded to float (<= u), the product
- * (<= u), the run's float sum of at most HIST_RUN products (<= (HIST_RUN - 1) u, the
- * recursive summation bound), the double sums (about d 2^-53): at most
- * (HIST_RUN + 1) u S + d 2^-53 S (1 + O(u)), i.e. 1.0e-6 S for runs of 16; in practice the
- * roundings are of both signs and it stays near the float32 rounding the samples already
- * carry (u S). tests/test_history.c checks that bound against Eq. 3 in double.
+ * Error of D_t against the same sum in exact arithmetic, with u = 2^-24 (float) and
+ * S = sum |w_k v_k| over its terms: the weight rounded to float (<= u), the run's fused
+ * multiply-adds (fmaf / vfmadd: one rounding each, the product exact inside; the first term
+ * of a run is rounded once, the last added once: at most HIST_RUN roundings on any term), the
+ * double sums (at most about d / 16 + 16 of them on any term, < cap + 1): at most
+ * (HIST_RUN + 1) u S + (cap + 1) 2^-53 S (1 + O(u)), i.e. 1.0e-6 S for runs of 16; in
+ * practice the roundings are of both signs and it stays near the float32 rounding the
+ * samples already carry (u S). tests/test_history.c checks that bound against Eq. 3 in
+ * double.
  *
- * Determinism. The runs are anchored on the lag (run r holds L in (16 r, 16 r + 16]), not
- * on where the pass starts, and each sum adds its terms oldest first (in its run, then the
- * runs into c), one rounded product and one rounded sum each, whatever the kernel, the
- * chunks or the threads. A pass started in the middle of a block (j0 > 0) starts at an
- * older lag L = d - j0 < d: the terms it leaves out have lags past d, weight 0 (wf holds
- * HIST_TBLOCK zeros past lag d, see history_init), and they add +0 to a sum that is +0 so
- * far (-0 + +0 is +0), which leaves every bit as in a pass from the block's start. */
-/* The kernel's sums: up to OLD_JB future samples x OLD_EB elements, in groups of j as many as
- * the registers hold (AVX2: 16 registers, groups of 6, 6 and 4; AVX-512VL: 32, groups of 8;
- * the plain C code: 8). */
+ * Determinism. The runs are the samples in aligned groups of 16 (sample index 16 m .. 16 m +
+ * 15): old's runs are anchored on the lag from n0 (run r holds L in (16 r, 16 r + 16], n0 a
+ * multiple of 16) and each sub-block is one. Each sum adds its terms oldest first: in its run
+ * (one fused multiply-add each, whatever the kernel), the runs into the double sum, then the
+ * newest terms, whatever the chunks, the threads or the block length (a block of 32 gives
+ * the bits of two of 16). A pass started in the middle of a block (j0 > 0: after a resize, a
+ * resume) computes the rows of the sub-blocks from j0's on, from an older lag L = d - j0 < d:
+ * the terms it leaves out have lags past d, weight 0 (wf holds HIST_TBLOCK zeros past lag d,
+ * see history_init), and they add +0 to a sum that is +0 so far (-0 + +0 is +0); then the
+ * finished sub-blocks' runs, in order (derivative_blocked): every bit as in a pass from the
+ * block's start. */
+/* The kernel's sums: up to OLD_JB future samples x OLD_EB elements, in groups of j (of a
+ * sub-block's 16) as many as the registers hold (AVX2: 16 registers, groups of 6, 6 and 4;
+ * AVX-512: all 16, one 512-bit vector each; the plain C code: 8). */
 enum { OLD_JB = 8, OLD_EB = 16 };
 static const int old_group[3][4] = {{0, 8, 16, 16}, {0, 6, 12, 16}, {0, 16, 16, 16}}; /* by simd */
 
@@ -237,11 +243,12 @@ static void old_kernel(const float *const *ps, int e0, int num, int jb, const fl
 #include <immintrin.h>
 #define HIST_X86 1
 /* The same with 256-bit vectors (chosen at run time, history_simd), jb a constant once
- * inlined: 2 jb float sums of 8 lanes in registers, the weights broadcast. Multiply, then
- * add (_mm256_mul_ps, _mm256_add_ps; no FMA), the run's sums then converted to double
- * (exact) and added: the same roundings as the plain version. */
+ * inlined: 2 jb float sums of 8 lanes in registers, the weights broadcast. Fused
+ * multiply-add (_mm256_fmadd_ps, as fmaf), the run's sums then converted to double (exact)
+ * and added: the same roundings as the plain version. */
 __attribute__((target("avx2,fma"), always_inline)) static inline void
-old_kernel_vec(const float *const *ps, int e0, int num, int jb, const float *wl, double *c, size_t cs)
+old_kernel_vec(const float *const *ps, int e0, int num, int jb, const float *wl, double *c,
+               size_t cs)
 {
     __m256 a[OLD_JB], b[OLD_JB];
     for (int j = 0; j < jb; j++) a[j] = b[j] = _mm256_setzero_ps();
@@ -266,20 +273,21 @@ old_kernel_vec(const float *const *ps, int e0, int num, int jb, const float *wl,
         }
     }
 }
-__attribute__((target("avx2,fma"))) static void old_kernel_avx2_6(const float *const *ps, int e0,
-                                                              int num, const float *wl, double *c, size_t cs)
+__attribute__((target("avx2,fma"))) static void
+old_kernel_avx2_6(const float *const *ps, int e0, int num, const float *wl, double *c, size_t cs)
 {
     old_kernel_vec(ps, e0, num, 6, wl, c, cs);
 }
-__attribute__((target("avx2,fma"))) static void old_kernel_avx2_4(const float *const *ps, int e0,
-                                                              int num, const float *wl, double *c, size_t cs)
+__attribute__((target("avx2,fma"))) static void
+old_kernel_avx2_4(const float *const *ps, int e0, int num, const float *wl, double *c, size_t cs)
 {
     old_kernel_vec(ps, e0, num, 4, wl, c, cs);
 }
-/* AVX-512: one 512-bit vector of OLD_EB elements per future sample, all HIST_TBLOCK of them
+/* AVX-512: one 512-bit vector of OLD_EB elements per future sample, all 16 of a sub-block
  * (16 sums in registers, one sample load and 16 weight broadcasts per lag). On the AMD Zen 4
  * this was measured on, a 512-bit multiply-add is split in two like two 256-bit ones, but
- * issues as one instruction: 1.6-2x the 256-bit kernel's rate (which the front end limits). */
+ * issues as one instruction: the history stage at d = 500 took 0.89x the time of the 256-bit
+ * kernel's (whose loop the front end limits). */
 __attribute__((target("avx2,fma,avx512f"))) static void
 old_kernel_avx512_16(const float *const *ps, int e0, int num, const float *wl, double *c, size_t cs)
 {
@@ -334,7 +342,7 @@ double history_error_bound(const stf_history *h)
     double ud = 0x1p-53, uf = 0x1p-24, m = h->cap + 1.0;
     double dbl = m * ud / (1.0 - m * ud);
     if (!blocked_sum(h)) return dbl;
-    double k = HIST_RUN + 1.0, flt = k * uf / (1.0 - k * uf); /* see old_chunk */
+    double k = HIST_RUN + 1.0, flt = k * uf / (1.0 - k * uf); /* see "Precision" above */
     return flt + dbl * (1.0 + flt);
 }
 
@@ -352,11 +360,14 @@ static void add_runs(const stf_history *h, int simd, const float *const *ps, int
                         c + (size_t)(b + group[g]) * cs + (size_t)e, cs);
 }
 
-/* more: the same thread takes the chunk after next (its samples are prefetched into L2
+/* old_j for the rows of the sub-blocks from j0's on, elements [lo, lo + cnt), summed in
+ * place in old (rows 3 n_old apart).
+ * more: the same thread takes the chunk after next (its samples are prefetched into L2
  * while this one is summed: a chunk's 4 lines of a slot are 12 n bytes from the next slot's,
  * too far apart for the hardware prefetcher; one chunk ahead is too late). The kernel reads
- * up to OLD_EB - 1 floats past cnt, inside the ring's row (3 n_alloc >= 3 n + 48), and their
- * sums are not stored. */
+ * and sums up to OLD_EB - 1 elements past cnt, inside the rows (3 n_alloc >= 3 n + 48):
+ * rows not in use, whose samples are zero, and so are their sums (+0, as a new particle's
+ * must be). */
 static void old_chunk(const stf_history *h, int simd, int j0, int lo, int cnt, int more)
 {
     int d = h->cap - 1, b0 = j0 / HIST_SUB;

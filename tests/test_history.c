@@ -344,7 +344,8 @@ static void test_window_remove(void)
            the re-sort, sort[keep[k]] (at is the identity before it) */
         double va[NP * 3], vb[KEEP * 3];
         for (int k = 0; k < na; k++)
-            for (int c = 0; c < 3; c++) va[3 * k + c] = sin(0.05 * t + 0.9 * at[k] + c) * (1 + at[k] % 3);
+            for (int c = 0; c < 3; c++)
+                va[3 * k + c] = sin(0.05 * t + 0.9 * at[k] + c) * (1 + at[k] % 3);
         for (int k = 0; k < KEEP; k++) {
             int o = sort[keep[k]];
             for (int c = 0; c < 3; c++) vb[3 * k + c] = sin(0.05 * t + 0.9 * o + c) * (1 + o % 3);
@@ -379,7 +380,8 @@ static void test_window_ring_copy(void)
     long differ = 0, checked = 0;
     for (int t = 0; t < T; t++) {
         if (t % 37 == 0) /* both re-sorted alike once the copy exists */
-            CHECK(history_permute(&a, perm, NP) == 0 && (t < SAVE || history_permute(&b, perm, NP) == 0),
+            CHECK(history_permute(&a, perm, NP) == 0 &&
+                      (t < SAVE || history_permute(&b, perm, NP) == 0),
                   "re-sort");
         if (t == SAVE) {
             float *ring = malloc((size_t)a.cap * NP * 3 * sizeof *ring);
