@@ -34,6 +34,8 @@ static void fill_weights(stf_history *h, int from)
  * HIST_SUB up to HIST_TBLOCK; HIST_NEWER: the elements a thread sums at a time (also in the
  * direct sum, history_derivative). */
 enum { HIST_SUB = 16, HIST_TBLOCK = 32, HIST_CHUNK = 64, HIST_RUN = 16, HIST_NEWER = 1536 };
+/* A row within HIST_NEAR rows of its particle is near it (history_permute). */
+enum { HIST_NEAR = 64 };
 
 /* The block length for a window of d steps: the ring is read once a block, the block's
  * older parts kept (8 bytes a sum, tblock of them per element): a long block for a long
@@ -562,10 +564,12 @@ void history_derivative(stf_history *h, int n)
         return failed ? -1 : 0;                                                               \
     }
 PERMUTE_ROWS(float, permute_rows_f)
+PERMUTE_ROWS(double, permute_rows_d)
 
-/* Particles removed (fewer than the rows in use): the rows are gathered so that row i holds
- * particle i again (perm taken through the rows), the rows past n zeroed. */
-static int permute_compact(stf_history *h, const int *perm, int n)
+/* The rows are gathered so that row i holds particle i again (perm taken through the rows),
+ * the rows past n zeroed: after particles were removed, or a re-sort that left the rows far
+ * from their particles. */
+static int permute_gather(stf_history *h, const int *perm, int n)
 {
     int rows = h->rows, *src = malloc((size_t)(2 * rows + 1) * sizeof *src);
     if (!src) return -1;
@@ -573,10 +577,11 @@ static int permute_compact(stf_history *h, const int *perm, int n)
     for (int r = 0; r < rows; r++) row_of[h->part[r]] = r;
     for (int i = 0; i < n; i++) src[i] = row_of[perm[i]];
     int rc = permute_rows_f(h->ring, (size_t)h->n_alloc * 3, h->cap, src, n, rows);
+    /* old is per row: reordered, it equals a recomputed one */
+    if (rc == 0 && h->old_n0 >= 0 &&
+        permute_rows_d(h->old, (size_t)h->n_old * 3, h->tblock, src, n, rows) != 0)
+        h->old_n0 = -1; /* recomputed at the next step */
     free(src);
-    if (h->old) /* recomputed at the next step (rows past n: zero, as a pass gives them) */
-        memset(h->old, 0, old_count(h, h->n_old) * sizeof *h->old);
-    h->old_n0 = -1;
     if (rc != 0) return -1;
     for (int r = 0; r < rows; r++) h->part[r] = r < n ? r : -1;
     h->rows = n;
@@ -588,13 +593,24 @@ int history_permute(stf_history *h, const int *perm, int n)
     if (h->terms) return history_soe_permute(h, perm, n);
     if (n > h->n_alloc) return -1;
     add_rows(h, n); /* particles added since the last push */
-    if (n < h->rows) return permute_compact(h, perm, n);
+    if (n < h->rows) return permute_gather(h, perm, n);
     /* A re-sort: only the row -> particle map changes; the ring (12 n d bytes) and old stay
-       where they are (moving them every re-sort cost as much as the sums). */
-    int *inv = malloc((size_t)(n + 1) * sizeof *inv);
+       where they are (moving them every re-sort cost as much as the sums). Unless most rows
+       would end far from their particles (the first sort of a scene's particles, or after
+       a stir): the pushes and the sums then gather and scatter all over v and D, which costs
+       more every step than the rows moving once. */
+    int *inv = malloc((size_t)(2 * n + 1) * sizeof *inv), *part = inv + n, far = 0;
     if (!inv) return -1;
     for (int i = 0; i < n; i++) inv[perm[i]] = i;
-    for (int r = 0; r < h->rows; r++) h->part[r] = inv[h->part[r]];
+    for (int r = 0; r < n; r++) {
+        part[r] = inv[h->part[r]];
+        far += abs(part[r] - r) > HIST_NEAR;
+    }
+    if (far > n / 8) {
+        free(inv);
+        return permute_gather(h, perm, n);
+    }
+    memcpy(h->part, part, (size_t)n * sizeof *part);
     free(inv);
     return 0;
 }

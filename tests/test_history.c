@@ -366,6 +366,46 @@ static void test_window_remove(void)
     history_free(&a), history_free(&b);
 }
 
+/* Re-sorts, in the middle of blocks: one that moves most rows far (the rows are gathered) and
+ * one that moves each particle a row or two (the row -> particle map alone changes); each
+ * particle's sums are bit for bit those of a twin that was never re-sorted. */
+static void test_window_resort(void)
+{
+    enum { NP = 700, D = 40, T = 130, FAR = 61, NEAR = 93 };
+    const double q = 0.7;
+    stf_history a, b;
+    CHECK(history_init(&a, q, D, NP) == 0 && history_init(&b, q, D, NP) == 0, "init");
+    static int at[NP], perm[NP], nat[NP]; /* at[k]: b's particle at index k of a */
+    for (int k = 0; k < NP; k++) at[k] = k;
+    static double va[NP * 3], vb[NP * 3];
+    long differ = 0, checked = 0;
+    for (int t = 0; t < T; t++) {
+        if (t == FAR || t == NEAR) {
+            for (int k = 0; k < NP; k++) /* reversed; or neighbours swapped in pairs */
+                perm[k] = t == FAR ? NP - 1 - k : (k ^ 1) < NP ? k ^ 1 : k;
+            for (int k = 0; k < NP; k++) nat[k] = at[perm[k]];
+            memcpy(at, nat, sizeof at);
+            CHECK(history_permute(&a, perm, NP) == 0, "re-sort");
+            /* far: row k holds particle k again; near: the map swaps them */
+            CHECK(a.part[0] == (t == FAR ? 0 : 1) && a.part[1] == (t == FAR ? 1 : 0),
+                  "t=%d: rows 0, 1 hold particles %d, %d", t, a.part[0], a.part[1]);
+        }
+        for (int e = 0; e < 3 * NP; e++) vb[e] = sin(0.13 * t + 0.37 * e) + 0.1 * (e % 7);
+        for (int k = 0; k < NP; k++)
+            for (int c = 0; c < 3; c++) va[3 * k + c] = vb[3 * at[k] + c];
+        history_push(&a, va, NP), history_push(&b, vb, NP);
+        history_derivative(&a, NP), history_derivative(&b, NP);
+        for (int k = 0; k < NP; k++)
+            for (int c = 0; c < 3; c++, checked++)
+                differ += memcmp(&a.D[3 * k + c], &b.D[3 * at[k] + c], sizeof(double)) != 0;
+    }
+    CHECK(differ == 0, "%ld of %ld sums differ after re-sorts", differ, checked);
+    printf("test_history: re-sorts at %d (far: rows gathered) and %d (near: map only), %d "
+           "particles: %ld sums bit-identical to a twin never re-sorted\n", FAR, NEAR, NP,
+           checked);
+    history_free(&a), history_free(&b);
+}
+
 /* A checkpoint's copy of the ring (history_ring_get, by particle) loaded into a new history
  * (history_ring_set) after re-sorts: the sums that follow are bit for bit the same. */
 static void test_window_ring_copy(void)
@@ -421,6 +461,7 @@ int main(void)
     test_window_recompute(70, 200, 123); /* 123: 11 samples into a block of 16 */
     test_window_recompute(300, 420, 373); /* 373: 21 into a block of 32 (its second half) */
     test_window_recompute(300, 420, 325); /* 325: 5 into its first half */
+    test_window_resort();
     test_window_remove();
     test_window_ring_copy();
     return test_result("test_history");
