@@ -34,8 +34,10 @@ static void fill_weights(stf_history *h, int from)
  * HIST_SUB up to HIST_TBLOCK; HIST_NEWER: the elements a thread sums at a time (also in the
  * direct sum, history_derivative). */
 enum { HIST_SUB = 16, HIST_TBLOCK = 32, HIST_CHUNK = 64, HIST_RUN = 16, HIST_NEWER = 1536 };
-/* A row within HIST_NEAR rows of its particle is near it (history_permute). */
-enum { HIST_NEAR = 64 };
+/* history_permute: a row within HIST_NEAR rows of its particle is near it; a re-sort renames
+ * the rows of a ring of more than HIST_MAP_SLOTS slots (d = 500: moving the ring cost 20 ms),
+ * and moves a shorter one (d = 50: the map's gathers cost 10% of the sums). */
+enum { HIST_NEAR = 64, HIST_MAP_SLOTS = 256 };
 
 /* The block length for a window of d steps: the ring is read once a block, the block's
  * older parts kept (8 bytes a sum, tblock of them per element): a long block for a long
@@ -171,6 +173,11 @@ int history_push(stf_history *h, const double *v, int n)
     h->pushed++;
     float *slot = h->ring + (size_t)h->head * (size_t)h->n_alloc * 3;
     const int *part = h->part;
+    if (!h->mapped && n == h->rows) { /* row i holds particle i */
+#pragma omp parallel for schedule(static)
+        for (int i = 0; i < 3 * n; i++) slot[i] = (float)v[i];
+        return 0;
+    }
 #pragma omp parallel for schedule(static)
     for (int r = 0; r < h->rows; r++) { /* rows past n (none in use) keep zeros */
         int p = part[r];
@@ -489,9 +496,10 @@ static int derivative_blocked(stf_history *h, int n)
 #pragma omp parallel for schedule(static)
     for (int b = 0; b < nblocks; b++) {
         int lo = b * HIST_NEWER, cnt = len - lo < HIST_NEWER ? len - lo : HIST_NEWER;
-        double acc[HIST_NEWER]; /* by row, in L1 while the samples stream past */
+        double buf[HIST_NEWER]; /* by row, in L1 while the samples stream past */
+        double *acc = h->mapped || n < h->rows ? buf : h->D + lo;
         newer_part(h, j, lo, cnt, acc);
-        store_rows(h, acc, lo, cnt, n);
+        if (acc == buf) store_rows(h, acc, lo, cnt, n);
     }
     return 0;
 }
@@ -530,9 +538,10 @@ void history_derivative(stf_history *h, int n)
 #pragma omp parallel for schedule(static)
     for (int b = 0; b < nblocks; b++) {
         int lo = b * HIST_NEWER, cnt = len - lo < HIST_NEWER ? len - lo : HIST_NEWER;
-        double acc[HIST_NEWER]; /* by row, in L1 while the samples stream past */
+        double buf[HIST_NEWER]; /* by row, in L1 while the samples stream past */
+        double *acc = h->mapped || n < h->rows ? buf : h->D + lo;
         direct_sum(h, m, w_end, lo, cnt, acc);
-        store_rows(h, acc, lo, cnt, n);
+        if (acc == buf) store_rows(h, acc, lo, cnt, n);
     }
 }
 
@@ -584,6 +593,7 @@ static int permute_gather(stf_history *h, const int *perm, int n)
     free(src);
     if (rc != 0) return -1;
     for (int r = 0; r < rows; r++) h->part[r] = r < n ? r : -1;
+    h->mapped = 0;
     h->rows = n;
     return 0;
 }
@@ -593,7 +603,8 @@ int history_permute(stf_history *h, const int *perm, int n)
     if (h->terms) return history_soe_permute(h, perm, n);
     if (n > h->n_alloc) return -1;
     add_rows(h, n); /* particles added since the last push */
-    if (n < h->rows) return permute_gather(h, perm, n);
+    /* a short ring is moved as before (cheaper than the map's gathers and scatters) */
+    if (n < h->rows || h->cap <= HIST_MAP_SLOTS) return permute_gather(h, perm, n);
     /* A re-sort: only the row -> particle map changes; the ring (12 n d bytes) and old stay
        where they are (moving them every re-sort cost as much as the sums). Unless most rows
        would end far from their particles (the first sort of a scene's particles, or after
@@ -611,6 +622,7 @@ int history_permute(stf_history *h, const int *perm, int n)
         return permute_gather(h, perm, n);
     }
     memcpy(h->part, part, (size_t)n * sizeof *part);
+    h->mapped = 1;
     free(inv);
     return 0;
 }
@@ -631,6 +643,7 @@ int history_ring_set(stf_history *h, const float *src, int n)
     if (n > h->n_alloc) return -1;
     size_t row = (size_t)n * 3, orow = (size_t)h->n_alloc * 3;
     for (int r = 0; r < h->n_alloc; r++) h->part[r] = r < n ? r : -1;
+    h->mapped = 0;
     h->rows = n;
     for (int s = 0; s < h->cap; s++) {
         float *dst = h->ring + (size_t)s * orow;

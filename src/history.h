@@ -20,6 +20,7 @@ typedef struct stf_history {
     float *ring;  /* cap slots of 3 n_alloc velocities (slot-major), by row */
     int *part;    /* n_alloc: the particle whose samples row r holds, -1 none */
     int rows;     /* rows in use: rows 0 .. rows - 1 hold particles 0 .. rows - 1 in some order */
+    int mapped;   /* 0: row r holds particle r (part is the identity) */
     long pushed;  /* samples pushed since the start */
     int head;     /* slot of the newest sample */
     double *w;    /* cap interior weights by lag: w[0] = 1, w[k] = a_{n-k,n} for 0 < k < n */

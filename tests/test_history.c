@@ -371,7 +371,7 @@ static void test_window_remove(void)
  * particle's sums are bit for bit those of a twin that was never re-sorted. */
 static void test_window_resort(void)
 {
-    enum { NP = 700, D = 40, T = 130, FAR = 61, NEAR = 93 };
+    enum { NP = 700, D = 260, T = 400, FAR = 301, NEAR = 333 }; /* d > 255: the map is used */
     const double q = 0.7;
     stf_history a, b;
     CHECK(history_init(&a, q, D, NP) == 0 && history_init(&b, q, D, NP) == 0, "init");
