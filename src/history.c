@@ -34,10 +34,11 @@ static void fill_weights(stf_history *h, int from)
  * HIST_SUB up to HIST_TBLOCK; HIST_NEWER: the elements a thread sums at a time (also in the
  * direct sum, history_derivative). */
 enum { HIST_SUB = 16, HIST_TBLOCK = 32, HIST_CHUNK = 64, HIST_RUN = 16, HIST_NEWER = 1536 };
-/* history_permute: a row within HIST_NEAR rows of its particle is near it; a re-sort renames
- * the rows of a ring of more than HIST_MAP_SLOTS slots (d = 500: moving the ring cost 20 ms),
- * and moves a shorter one (d = 50: the map's gathers cost 10% of the sums). */
-enum { HIST_NEAR = 64, HIST_MAP_SLOTS = 256 };
+/* history_permute: a re-sort renames the rows of a ring of more than HIST_MAP_SLOTS slots
+ * (d = 500: moving the ring cost 20-25 ms a re-sort, about 1 ms a step; the pushes and sums
+ * through a scrambled map about 0.1 ms a step more) and moves a shorter one (d = 50: the
+ * map's gathers would cost 10% of the sums). */
+enum { HIST_MAP_SLOTS = 256 };
 
 /* The block length for a window of d steps: the ring is read once a block, the block's
  * older parts kept (8 bytes a sum, tblock of them per element): a long block for a long
@@ -576,8 +577,7 @@ PERMUTE_ROWS(float, permute_rows_f)
 PERMUTE_ROWS(double, permute_rows_d)
 
 /* The rows are gathered so that row i holds particle i again (perm taken through the rows),
- * the rows past n zeroed: after particles were removed, or a re-sort that left the rows far
- * from their particles. */
+ * the rows past n zeroed: after particles were removed, or a re-sort of a short ring. */
 static int permute_gather(stf_history *h, const int *perm, int n)
 {
     int rows = h->rows, *src = malloc((size_t)(2 * rows + 1) * sizeof *src);
@@ -605,23 +605,12 @@ int history_permute(stf_history *h, const int *perm, int n)
     add_rows(h, n); /* particles added since the last push */
     /* a short ring is moved as before (cheaper than the map's gathers and scatters) */
     if (n < h->rows || h->cap <= HIST_MAP_SLOTS) return permute_gather(h, perm, n);
-    /* A re-sort: only the row -> particle map changes; the ring (12 n d bytes) and old stay
-       where they are (moving them every re-sort cost as much as the sums). Unless most rows
-       would end far from their particles (the first sort of a scene's particles, or after
-       a stir): the pushes and the sums then gather and scatter all over v and D, which costs
-       more every step than the rows moving once. */
-    int *inv = malloc((size_t)(2 * n + 1) * sizeof *inv), *part = inv + n, far = 0;
+    /* A re-sort of a long ring: only the row -> particle map changes; the ring (12 n d
+       bytes) and old stay where they are. */
+    int *inv = malloc((size_t)(n + 1) * sizeof *inv);
     if (!inv) return -1;
     for (int i = 0; i < n; i++) inv[perm[i]] = i;
-    for (int r = 0; r < n; r++) {
-        part[r] = inv[h->part[r]];
-        far += abs(part[r] - r) > HIST_NEAR;
-    }
-    if (far > n / 8) {
-        free(inv);
-        return permute_gather(h, perm, n);
-    }
-    memcpy(h->part, part, (size_t)n * sizeof *part);
+    for (int r = 0; r < n; r++) h->part[r] = inv[h->part[r]];
     h->mapped = 1;
     free(inv);
     return 0;

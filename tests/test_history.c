@@ -366,12 +366,13 @@ static void test_window_remove(void)
     history_free(&a), history_free(&b);
 }
 
-/* Re-sorts, in the middle of blocks: one that moves most rows far (the rows are gathered) and
- * one that moves each particle a row or two (the row -> particle map alone changes); each
- * particle's sums are bit for bit those of a twin that was never re-sorted. */
-static void test_window_resort(void)
+/* Re-sorts in the middle of blocks (all particles reversed, then neighbours swapped), of a
+ * short ring (d < 256: the rows are gathered) and a long one (the row -> particle map alone
+ * changes): each particle's sums are bit for bit those of a twin that was never re-sorted. */
+static void test_window_resort(int D)
 {
-    enum { NP = 700, D = 260, T = 400, FAR = 301, NEAR = 333 }; /* d > 255: the map is used */
+    enum { NP = 700 };
+    const int T = D + 140, FAR = D + 41, NEAR = D + 73;
     const double q = 0.7;
     stf_history a, b;
     CHECK(history_init(&a, q, D, NP) == 0 && history_init(&b, q, D, NP) == 0, "init");
@@ -386,9 +387,10 @@ static void test_window_resort(void)
             for (int k = 0; k < NP; k++) nat[k] = at[perm[k]];
             memcpy(at, nat, sizeof at);
             CHECK(history_permute(&a, perm, NP) == 0, "re-sort");
-            /* far: row k holds particle k again; near: the map swaps them */
-            CHECK(a.part[0] == (t == FAR ? 0 : 1) && a.part[1] == (t == FAR ? 1 : 0),
-                  "t=%d: rows 0, 1 hold particles %d, %d", t, a.part[0], a.part[1]);
+            /* short ring: row k holds particle k again; long: the map follows them */
+            int p0 = D < 256 ? 0 : t == FAR ? NP - 1 : NP - 2;
+            CHECK(a.part[0] == p0, "d=%d t=%d: row 0 holds particle %d, not %d", D, t,
+                  a.part[0], p0);
         }
         for (int e = 0; e < 3 * NP; e++) vb[e] = sin(0.13 * t + 0.37 * e) + 0.1 * (e % 7);
         for (int k = 0; k < NP; k++)
@@ -400,9 +402,9 @@ static void test_window_resort(void)
                 differ += memcmp(&a.D[3 * k + c], &b.D[3 * at[k] + c], sizeof(double)) != 0;
     }
     CHECK(differ == 0, "%ld of %ld sums differ after re-sorts", differ, checked);
-    printf("test_history: re-sorts at %d (far: rows gathered) and %d (near: map only), %d "
-           "particles: %ld sums bit-identical to a twin never re-sorted\n", FAR, NEAR, NP,
-           checked);
+    printf("test_history: d = %d (%s), re-sorts at %d and %d, %d particles: %ld sums "
+           "bit-identical to a twin never re-sorted\n", D, D < 256 ? "rows gathered" : "map",
+           FAR, NEAR, NP, checked);
     history_free(&a), history_free(&b);
 }
 
@@ -461,7 +463,8 @@ int main(void)
     test_window_recompute(70, 200, 123); /* 123: 11 samples into a block of 16 */
     test_window_recompute(300, 420, 373); /* 373: 21 into a block of 32 (its second half) */
     test_window_recompute(300, 420, 325); /* 325: 5 into its first half */
-    test_window_resort();
+    test_window_resort(40);
+    test_window_resort(260);
     test_window_remove();
     test_window_ring_copy();
     return test_result("test_history");
