@@ -26,10 +26,11 @@ typedef struct stf_history {
     double *w;    /* cap interior weights by lag: w[0] = 1, w[k] = a_{n-k,n} for 0 < k < n */
     float *wf;    /* window mode: w rounded to float32, then HIST_TBLOCK zeros (history.c) */
     double *D;    /* 3 n: sum_p a_{p,n} v_p (m/s), without the dt^(1-q)/Gamma(3-q) factor */
-    /* window mode, time blocks (history.c, history_derivative): the parts of the next
-     * HIST_TBLOCK sums that come from samples older than the block, taken in one pass over
-     * the ring at the block's start (a pure function of the ring: recomputed, never saved) */
-    double *old;  /* HIST_TBLOCK * 3 n_old, by row */
+    /* window mode, time blocks (history.c, history_derivative): the parts of the block's
+     * tblock sums that come from samples older than the block, taken in one pass over the
+     * ring at the block's start, and from its finished sub-blocks (a pure function of the
+     * ring: recomputed, never saved) */
+    double *old;  /* tblock * 3 n_old, by row */
     int n_old;    /* particles old was sized for */
     long old_n0;  /* sample index of the block old holds (-1: none) */
     int tblock;   /* the block's length (samples), a multiple of 16 */
@@ -60,8 +61,8 @@ double history_scale(double q, double dt);
  * for the latest history_derivative: the roundings of the sum (window mode in steady state:
  * float products summed in short runs, about 1e-6; otherwise double, about d 1e-16). */
 double history_error_bound(const stf_history *h);
-/* The window's sums use the CPU's vector unit up to `level`: 2 AVX-512VL, 1 AVX2, 0 the plain
- * C code (all give the same bits); -1 leaves it. Process-wide, default 2 (tests compare the
+/* The window's sums use the CPU's vector unit up to `level`: 2 AVX-512, 1 AVX2 (each with
+ * FMA), 0 the plain C code (all give the same bits); -1 leaves it. Process-wide, default 2 (tests compare the
  * levels). Returns the level in use (the highest the CPU has, at most `level`). */
 int history_simd(int level);
 /* Reorders particles: new index i takes old index perm[i] (n fewer than before: the others
