@@ -48,15 +48,6 @@ static int save_springs(const stf_springs *sp, int n, stf_state *s)
     return 0;
 }
 
-/* The ring is slot-major with rows of n_alloc particles; the checkpoint holds n of each:
- * copies cap rows of `row` floats from rows src_row apart to rows dst_row apart. */
-static void copy_slots(float *dst, size_t dst_row, const float *src, size_t src_row, int cap,
-                       size_t row)
-{
-    for (int k = 0; k < cap; k++)
-        memcpy(dst + (size_t)k * dst_row, src + (size_t)k * src_row, row * sizeof *dst);
-}
-
 static int save_history(const stf_history *h, int n, stf_state *s)
 {
     stf_state_put_i64(s, "history.pushed", h->pushed);
@@ -72,7 +63,7 @@ static int save_history(const stf_history *h, int n, stf_state *s)
     size_t row = (size_t)n * 3;
     float *ring = malloc((size_t)h->cap * row * sizeof *ring + 1);
     if (!ring) return -1;
-    copy_slots(ring, row, h->ring, (size_t)h->n_alloc * 3, h->cap, row);
+    history_ring_get(h, ring, n); /* slot-major, particle order */
     stf_state_put_owned(s, "history.ring", F32, (size_t)h->cap * row, ring);
     return 0;
 }
@@ -191,7 +182,10 @@ static int load_history(stf_fluid *f, const stf_state *s, char *err, size_t errl
     float *ring = malloc((size_t)cap * row * sizeof *ring + 1);
     if (!ring) goto oom;
     int rc = stf_state_get(s, "history.ring", F32, (size_t)cap * row, ring, err, errlen);
-    if (rc == 0) copy_slots(h->ring, (size_t)h->n_alloc * 3, ring, row, (int)cap, row);
+    if (rc == 0 && history_ring_set(h, ring, n) != 0) {
+        snprintf(err, errlen, "checkpoint: %d particles do not fit the history ring", n);
+        rc = -1;
+    }
     free(ring);
     return rc;
 oom:

@@ -4,7 +4,9 @@
  * a ring (float32, 12 bytes a vector as in the paper's Table 1); the weighted sum is taken once
  * per particle per step, so a spring needs only |D_i - D_j| (DESIGN.md, "History springs").
  * The ring is stored by time slot (slot s holds all particles' velocities of one step), so
- * the weighted sum streams through memory in a loop the compiler vectorizes. */
+ * the weighted sum streams through memory in a loop the compiler vectorizes. Row r of a slot
+ * holds particle part[r]'s velocity: a re-sort renames the rows' particles instead of moving
+ * the ring (12 n d bytes). */
 #ifndef STF_HISTORY_H
 #define STF_HISTORY_H
 
@@ -15,18 +17,24 @@ typedef struct stf_history {
     int window;   /* d: lags kept beyond the newest sample; 0 for full history */
     int cap;      /* ring slots per particle */
     int n_alloc;  /* particles the ring holds */
-    float *ring;  /* cap slots of 3 n_alloc velocities (slot-major) */
+    float *ring;  /* cap slots of 3 n_alloc velocities (slot-major), by row */
+    int *part;    /* n_alloc: the particle whose samples row r holds, -1 none */
+    int rows;     /* rows in use: rows 0 .. rows - 1 hold particles 0 .. rows - 1 in some order */
+    int mapped;   /* 0: row r holds particle r (part is the identity) */
     long pushed;  /* samples pushed since the start */
     int head;     /* slot of the newest sample */
     double *w;    /* cap interior weights by lag: w[0] = 1, w[k] = a_{n-k,n} for 0 < k < n */
     float *wf;    /* window mode: w rounded to float32, then HIST_TBLOCK zeros (history.c) */
     double *D;    /* 3 n: sum_p a_{p,n} v_p (m/s), without the dt^(1-q)/Gamma(3-q) factor */
-    /* window mode, time blocks (history.c, history_derivative): the parts of the next
-     * HIST_TBLOCK sums that come from samples older than the block, taken in one pass over
-     * the ring at the block's start (a pure function of the ring: recomputed, never saved) */
-    double *old;  /* HIST_TBLOCK * 3 n_old */
+    /* window mode, time blocks (history.c, history_derivative): the parts of the block's
+     * tblock sums that come from samples older than the block, taken in one pass over the
+     * ring at the block's start, and from its finished sub-blocks (a pure function of the
+     * ring: recomputed, never saved) */
+    double *old;  /* tblock * 3 n_old, by row */
     int n_old;    /* particles old was sized for */
     long old_n0;  /* sample index of the block old holds (-1: none) */
+    int tblock;   /* the block's length (samples), a multiple of 16 */
+    int old_mid;  /* the block's sub-blocks of 16 samples whose sums old includes */
     /* sum-of-exponentials mode (history_soe.c); terms == 0 for the exact ring */
     int terms;      /* K exponentials */
     double *soe_r;  /* K decay factors per step, exp(-lambda_j) */
@@ -53,12 +61,18 @@ double history_scale(double q, double dt);
  * for the latest history_derivative: the roundings of the sum (window mode in steady state:
  * float products summed in short runs, about 1e-6; otherwise double, about d 1e-16). */
 double history_error_bound(const stf_history *h);
-/* The window's sums use the CPU's vector unit up to `level`: 2 AVX-512VL, 1 AVX2, 0 the plain
- * C code (all give the same bits); -1 leaves it. Process-wide, default 2 (tests compare the
+/* The window's sums use the CPU's vector unit up to `level`: 2 AVX-512, 1 AVX2 (each with
+ * FMA), 0 the plain C code (all give the same bits); -1 leaves it. Process-wide, default 2 (tests compare the
  * levels). Returns the level in use (the highest the CPU has, at most `level`). */
 int history_simd(int level);
-/* Reorders particles: new index i takes old index perm[i]. */
+/* Reorders particles: new index i takes old index perm[i] (n fewer than before: the others
+ * are removed). */
 int history_permute(stf_history *h, const int *perm, int n);
+/* The ring as a checkpoint stores it: cap slots of 3 n floats, slot s as the ring's slot s,
+ * particles in their order (particles without a sample: zero). */
+void history_ring_get(const stf_history *h, float *dst, int n);
+/* Loads that; n <= the particles the ring holds. 0 / -1. */
+int history_ring_set(stf_history *h, const float *src, int n);
 size_t history_bytes(const stf_history *h);
 /* Full history: grows the ring to cap slots per particle (doubling, as pushes do), for a
  * checkpoint that had that many. 0 / -1. */
