@@ -10,35 +10,17 @@
 
 #include "fluid.h"
 
-/* With the identity (a container that only translates, as a vibrating one does) the
- * products are skipped: the same values, 1 * a + 0 * b + 0 * c being a (+0 for -0). */
 static void to_local(const collider *c, const double x[3], double p[3])
 {
     double d[3] = {x[0] - c->pos[0], x[1] - c->pos[1], x[2] - c->pos[2]};
-    if (c->identity) {
-        for (int a = 0; a < 3; a++) p[a] = d[a] + 0.0;
-        return;
-    }
     const double *R = c->rot;
     for (int a = 0; a < 3; a++) p[a] = R[a] * d[0] + R[3 + a] * d[1] + R[6 + a] * d[2];
 }
 
 static void to_world_dir(const collider *c, const double l[3], double w[3])
 {
-    if (c->identity) {
-        for (int a = 0; a < 3; a++) w[a] = l[a] + 0.0;
-        return;
-    }
     const double *R = c->rot;
     for (int a = 0; a < 3; a++) w[a] = R[3 * a] * l[0] + R[3 * a + 1] * l[1] + R[3 * a + 2] * l[2];
-}
-
-void collider_set_rotation(collider *c, const double rot[9])
-{
-    static const double I[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
-    memcpy(c->rot, rot, sizeof c->rot);
-    c->identity = 1;
-    for (int k = 0; k < 9; k++) c->identity &= rot[k] == I[k];
 }
 
 static double norm3(const double a[3]) { return sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]); }
@@ -325,7 +307,6 @@ int collider_init(collider *c, const stf_collider_def *def, char *err, size_t er
         memcpy(c->points, def->points, (size_t)def->npoints * 3 * sizeof *c->points);
     }
     c->rot[0] = c->rot[4] = c->rot[8] = 1;
-    c->identity = 1;
     c->bound = bounding_radius(c);
     return 0;
 }

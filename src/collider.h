@@ -11,7 +11,6 @@ typedef struct collider {
     double *points;   /* convex: own copy of the hull points (body frame) */
     double pos[3];    /* m, world */
     double rot[9];    /* body -> world, row-major */
-    int identity;     /* rot is exactly the identity (collider_set_rotation): no products */
     double vel[3];    /* m/s at pos */
     double angvel[3]; /* rad/s */
     double impulse[3];/* N s given to the collider during the last step */
@@ -20,8 +19,6 @@ typedef struct collider {
 } collider;
 
 int collider_init(collider *c, const stf_collider_def *def, char *err, size_t errlen);
-/* Sets rot (row-major, body -> world). */
-void collider_set_rotation(collider *c, const double rot[9]);
 void collider_free(collider *c);
 /* Signed distance from x to the surface (m, > 0 outside the solid, may be a large positive
  * number when far) and the unit normal pointing out of the solid. */

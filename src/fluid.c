@@ -314,7 +314,7 @@ void stf_fluid_set_collider_state(stf_fluid *f, int id, const double pos[3], con
 {
     collider *c = &f->colliders[id];
     memcpy(c->pos, pos, sizeof c->pos);
-    if (rot) collider_set_rotation(c, rot);
+    if (rot) memcpy(c->rot, rot, sizeof c->rot);
     if (vel) memcpy(c->vel, vel, sizeof c->vel);
     if (angvel) memcpy(c->angvel, angvel, sizeof c->angvel);
 }
