@@ -53,11 +53,14 @@ static void add_rows(stf_history *h, int n)
     if (n > h->rows) h->rows = n;
 }
 
-/* The exact ring takes the time-blocked sum: a window longer than a sub-block, in steady
- * state (every sum has all d + 1 lags with the interior weights). */
+/* The exact ring takes the time-blocked sum: a window longer than a sub-block. Before the
+ * ring is full the sum runs over all d + 1 lags too, the slots not yet written being zeros
+ * (the rest before t = 0), and the oldest sample's end-point weight is put right after it
+ * (derivative_blocked): the first d steps cost what the later ones do, not a direct sum over
+ * every sample each step. */
 static int blocked_sum(const stf_history *h)
 {
-    return !h->terms && h->window > HIST_SUB && h->pushed - 1 >= h->cap;
+    return !h->terms && h->window > HIST_SUB && h->pushed >= 1;
 }
 
 int history_init(stf_history *h, double q, int window, int n)
@@ -487,12 +490,27 @@ static STF_VECTOR_CLONES void newer_part(const stf_history *h, int j, int lo, in
     }
 }
 
+/* acc += c v_{t-m}, the sample at lag m (the ring's slot head - m), elements [lo, lo + cnt). */
+static STF_VECTOR_CLONES void add_lag(const stf_history *h, int m, double c, int lo, int cnt,
+                                      double *restrict acc)
+{
+    int s = h->head - m;
+    if (s < 0) s += h->cap;
+    const float *r = h->ring + (size_t)s * (size_t)h->n_alloc * 3 + lo;
+    for (int e = 0; e < cnt; e++) acc[e] += c * r[e];
+}
+
 static int derivative_blocked(stf_history *h, int n)
 {
     long t = h->pushed - 1, n0 = t - t % h->tblock;
     int j = (int)(t - n0);
     if (h->old_n0 != n0 && fill_old(h, n0, j) != 0) return -1;
     while (h->old_mid < j / HIST_SUB) add_mid(h, t, n0); /* the sub-blocks before j's */
+    /* Before the ring is full, the oldest sample (p = 0 of Eq. 3, at lag t) takes the
+       end-point weight a_{0,t} (1 for t = 0) where the sum gave it the interior w_t: the
+       difference is added to it (the direct sum below does the same in one pass). */
+    int m = t < h->cap ? (int)t : -1;
+    double fix = m < 0 ? 0.0 : (t == 0 ? 1.0 : stf_history_weight(h->q, 0, t)) - h->w[m];
     int len = 3 * h->rows, nblocks = (len + HIST_NEWER - 1) / HIST_NEWER;
 #pragma omp parallel for schedule(static)
     for (int b = 0; b < nblocks; b++) {
@@ -500,6 +518,7 @@ static int derivative_blocked(stf_history *h, int n)
         double buf[HIST_NEWER]; /* by row, in L1 while the samples stream past */
         double *acc = h->mapped || n < h->rows ? buf : h->D + lo;
         newer_part(h, j, lo, cnt, acc);
+        if (m >= 0) add_lag(h, m, fix, lo, cnt, acc);
         if (acc == buf) store_rows(h, acc, lo, cnt, n);
     }
     return 0;

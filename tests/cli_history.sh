@@ -57,12 +57,14 @@ for name in ("fig3_impact", "fig4_constant"):
     for q in ("0.2", "0.5", "0.8"):
         k = {w: [r[col[f"q{q}_{w}"]] for r in rows] for w in windows}
         peaks = [max(k[w]) for w in windows]
+        # windows over 16 steps sum in float32 blocks: within 1.0e-6 of the sum of |terms|
+        # (src/history.c), so equal peaks (before a window fills) may differ by that much
         for a, b, wa, wb in zip(peaks, peaks[1:], windows, windows[1:]):
-            if not b >= a * (1 - 1e-12):
+            if not b >= a * (1 - 2e-6):
                 bad.append(f"{name} q={q}: peak {wb} {b:.6g} < peak {wa} {a:.6g}")
         for w in windows:
             after = k[w][stop:]
-            rises = [i for i in range(1, len(after)) if after[i] > after[i - 1] * (1 + 1e-12) + 1e-15]
+            rises = [i for i in range(1, len(after)) if after[i] > after[i - 1] * (1 + 2e-6) + 1e-15]
             if rises:
                 bad.append(f"{name} q={q} {w}: stiffness rises after the motion stops (step {stop + rises[0]})")
             if not after[-1] < 0.8 * after[0]:
