@@ -290,24 +290,14 @@ __attribute__((target("avx2"))) static int find_candidates_avx2(const double *x,
 }
 #endif
 
-static int grow_i32(int32_t **p, size_t *cap, size_t need)
+/* *p holds at least need elements of `size` bytes (*cap of them, with room to grow). 0 / -1. */
+static int grow(void *p, size_t *cap, size_t need, size_t size)
 {
     if (need <= *cap) return 0;
     size_t c = need + need / 4 + 1024;
-    int32_t *q = realloc(*p, c * sizeof *q);
+    void *q = realloc(*(void **)p, c * size);
     if (!q) return -1;
-    *p = q;
-    *cap = c;
-    return 0;
-}
-
-static int grow_u64(uint64_t **p, size_t *cap, size_t need)
-{
-    if (need <= *cap) return 0;
-    size_t c = need + need / 4 + 256;
-    uint64_t *q = realloc(*p, c * sizeof *q);
-    if (!q) return -1;
-    *p = q;
+    *(void **)p = q;
     *cap = c;
     return 0;
 }
@@ -357,7 +347,7 @@ static int rebuild(stf_grid *g, const double *x, int n, double h)
                 bad = 1;
                 break;
             }
-            if (grow_i32(buf, cap, len + (size_t)r.len + RUN_PAD) != 0) {
+            if (grow(buf, cap, len + (size_t)r.len + RUN_PAD, sizeof **buf) != 0) {
                 bad = 1;
                 break;
             }
@@ -382,9 +372,9 @@ static int rebuild(stf_grid *g, const double *x, int n, double h)
                 g->off[i + 1] = g->off[i] + (size_t)g->ccount[i];
                 g->woff[i + 1] = g->woff[i] + ((size_t)g->ccount[i] + 63) / 64;
             }
-            if (grow_i32(&g->cand, &g->cand_cap, g->off[n]) != 0 ||
-                grow_i32(&g->nbr, &g->nbr_cap, g->off[n]) != 0 ||
-                grow_u64(&g->inb, &g->inb_cap, g->woff[n]) != 0)
+            if (grow(&g->cand, &g->cand_cap, g->off[n], sizeof *g->cand) != 0 ||
+                grow(&g->nbr, &g->nbr_cap, g->off[n], sizeof *g->nbr) != 0 ||
+                grow(&g->inb, &g->inb_cap, g->woff[n], sizeof *g->inb) != 0)
                 failed = 1;
         } /* implied barrier */
         if (!failed && len > 0) memcpy(g->cand + g->off[lo], *buf, len * sizeof **buf);
@@ -438,24 +428,24 @@ static inline void put_bits(stf_grid *g, int i, size_t w, uint64_t bits, int *ga
 }
 
 /* Particle i's neighbours within h: its candidates filtered, in their order, to out (room
- * for every candidate). */
+ * for every candidate); the candidates a word of bits at a time. */
 static int filter_one(stf_grid *g, const double *x, int i, double h2, int32_t *out)
 {
     const int32_t *c = g->cand + g->off[i];
     int cnt = 0, m = g->ccount[i], gained = g->inb_fresh; /* locals: out could alias them */
-    uint64_t bits = 0;
     double xi = x[3 * i], yi = x[3 * i + 1], zi = x[3 * i + 2];
-    for (int k = 0; k < m; k++) {
-        int j = c[k];
-        double rx = x[3 * j] - xi, ry = x[3 * j + 1] - yi, rz = x[3 * j + 2] - zi;
-        int in = rx * rx + ry * ry + rz * rz < h2;
-        out[cnt] = j; /* branch-free: half the candidates are kept, unpredictably */
-        cnt += in;
-        bits |= (uint64_t)in << (k & 63);
-        if ((k & 63) == 63 || k == m - 1) {
-            put_bits(g, i, (size_t)k / 64, bits, &gained);
-            bits = 0;
+    for (int k0 = 0; k0 < m; k0 += 64) {
+        int k1 = m - k0 < 64 ? m : k0 + 64;
+        uint64_t bits = 0;
+        for (int k = k0; k < k1; k++) {
+            int j = c[k];
+            double rx = x[3 * j] - xi, ry = x[3 * j + 1] - yi, rz = x[3 * j + 2] - zi;
+            int in = rx * rx + ry * ry + rz * rz < h2;
+            out[cnt] = j; /* branch-free: half the candidates are kept, unpredictably */
+            cnt += in;
+            bits |= (uint64_t)in << (k - k0);
         }
+        put_bits(g, i, (size_t)k0 / 64, bits, &gained);
     }
     g->gained[i] = (uint8_t)gained;
     return cnt;
@@ -470,35 +460,34 @@ __attribute__((target("avx2"))) static int filter_one_avx2(stf_grid *g, const do
                                                            double h2, int32_t *out)
 {
     const int32_t *c = g->cand + g->off[i];
-    int m = g->ccount[i], cnt = 0, k = 0, gained = g->inb_fresh;
-    uint64_t bits = 0;
-    __m256d px = _mm256_set1_pd(x[3 * i]), py = _mm256_set1_pd(x[3 * i + 1]),
-            pz = _mm256_set1_pd(x[3 * i + 2]), lim = _mm256_set1_pd(h2);
-    for (; k + 4 <= m; k += 4) {
-        const double *a = x + 3 * c[k], *b = x + 3 * c[k + 1], *e = x + 3 * c[k + 2],
-                     *f = x + 3 * c[k + 3];
-        __m256d rx = _mm256_sub_pd(_mm256_set_pd(f[0], e[0], b[0], a[0]), px);
-        __m256d ry = _mm256_sub_pd(_mm256_set_pd(f[1], e[1], b[1], a[1]), py);
-        __m256d rz = _mm256_sub_pd(_mm256_set_pd(f[2], e[2], b[2], a[2]), pz);
-        int near = pack_near4(out + cnt, _mm_loadu_si128((const __m128i *)(c + k)), rx, ry, rz,
-                              lim, 0);
-        cnt += __builtin_popcount((unsigned)near);
-        bits |= (uint64_t)near << (k & 63); /* k is a multiple of 4 */
-        if ((k & 63) == 60) {
-            put_bits(g, i, (size_t)k / 64, bits, &gained);
-            bits = 0;
-        }
-    }
+    int m = g->ccount[i], cnt = 0, gained = g->inb_fresh;
     double xi = x[3 * i], yi = x[3 * i + 1], zi = x[3 * i + 2];
-    for (; k < m; k++) {
-        int j = c[k];
-        double rx = x[3 * j] - xi, ry = x[3 * j + 1] - yi, rz = x[3 * j + 2] - zi;
-        int in = rx * rx + ry * ry + rz * rz < h2;
-        out[cnt] = j;
-        cnt += in;
-        bits |= (uint64_t)in << (k & 63);
+    __m256d px = _mm256_set1_pd(xi), py = _mm256_set1_pd(yi), pz = _mm256_set1_pd(zi),
+            lim = _mm256_set1_pd(h2);
+    for (int k0 = 0; k0 < m; k0 += 64) { /* a word of bits at a time */
+        int k1 = m - k0 < 64 ? m : k0 + 64, k = k0;
+        uint64_t bits = 0;
+        for (; k + 4 <= k1; k += 4) {
+            const double *a = x + 3 * c[k], *b = x + 3 * c[k + 1], *e = x + 3 * c[k + 2],
+                         *f = x + 3 * c[k + 3];
+            __m256d rx = _mm256_sub_pd(_mm256_set_pd(f[0], e[0], b[0], a[0]), px);
+            __m256d ry = _mm256_sub_pd(_mm256_set_pd(f[1], e[1], b[1], a[1]), py);
+            __m256d rz = _mm256_sub_pd(_mm256_set_pd(f[2], e[2], b[2], a[2]), pz);
+            int near = pack_near4(out + cnt, _mm_loadu_si128((const __m128i *)(c + k)), rx, ry,
+                                  rz, lim, 0);
+            cnt += __builtin_popcount((unsigned)near);
+            bits |= (uint64_t)near << (k - k0);
+        }
+        for (; k < k1; k++) { /* the last word's last few */
+            int j = c[k];
+            double rx = x[3 * j] - xi, ry = x[3 * j + 1] - yi, rz = x[3 * j + 2] - zi;
+            int in = rx * rx + ry * ry + rz * rz < h2;
+            out[cnt] = j;
+            cnt += in;
+            bits |= (uint64_t)in << (k - k0);
+        }
+        put_bits(g, i, (size_t)k0 / 64, bits, &gained);
     }
-    if (m & 63) put_bits(g, i, (size_t)(m - 1) / 64, bits, &gained); /* the last, partial word */
     g->gained[i] = (uint8_t)gained;
     return cnt;
 }
@@ -684,7 +673,7 @@ static int build_periodic(stf_grid *g, const double *x, int n, double h)
     if (sort_by_bucket(g, x, n) != 0) return -1;
     if (g->stride == 0) g->stride = 64;
     for (;;) { /* rows stride apart, widened when one overflows */
-        if (grow_i32(&g->nbr, &g->nbr_cap, (size_t)n * (size_t)g->stride) != 0) return -1;
+        if (grow(&g->nbr, &g->nbr_cap, (size_t)n * (size_t)g->stride, sizeof *g->nbr) != 0) return -1;
         int most = 0;
 #pragma omp parallel for schedule(static) reduction(max : most)
         for (int i = 0; i < n; i++) {

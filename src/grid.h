@@ -6,9 +6,9 @@
  * have moved more than the skin relative to each other since the last rebuild (Verlet
  * lists), or when the particles were reordered. Every step the candidates are filtered to
  * the neighbours within h, into rows packed in the candidates' space (grid_row). The
- * rebuilds depend on the positions only and the
- * lists are built in parallel with no shared writes, so the lists (and the order of every
- * sum over them) do not depend on the thread count. */
+ * rebuilds depend on the positions only and the lists are built in parallel with no shared
+ * writes, so the lists (and the order of every sum over them) do not depend on the thread
+ * count. */
 #ifndef STF_GRID_H
 #define STF_GRID_H
 

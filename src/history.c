@@ -473,31 +473,24 @@ static void store_rows(const stf_history *h, const double *acc, int lo, int cnt,
     }
 }
 
+/* acc += c v_{t-k}, the sample at lag k (slot head - k), for the elements [lo, lo + cnt). */
+static inline __attribute__((always_inline)) void add_lag(const stf_history *h, int k, double c,
+                                                          int lo, int cnt, double *restrict acc)
+{
+    int s = h->head - k;
+    if (s < 0) s += h->cap;
+    const float *r = h->ring + (size_t)s * (size_t)h->n_alloc * 3 + lo;
+    for (int e = 0; e < cnt; e++) acc[e] += c * r[e];
+}
+
 /* acc = old_j + sum_{k=j..0} w_k v_{t-k} for the elements [lo, lo + cnt): the block's own
  * samples, oldest first, streamed slot by slot while the sums stay in L1. */
 static STF_VECTOR_CLONES void newer_part(const stf_history *h, int j, int lo, int cnt,
                                          double *restrict acc)
 {
-    size_t row = (size_t)h->n_alloc * 3;
     const double *old = h->old + (size_t)j * (size_t)h->n_old * 3 + lo;
     for (int e = 0; e < cnt; e++) acc[e] = old[e];
-    for (int k = j % HIST_SUB; k >= 0; k--) {
-        int s = h->head - k;
-        if (s < 0) s += h->cap;
-        const float *r = h->ring + (size_t)s * row + lo;
-        double wk = h->w[k];
-        for (int e = 0; e < cnt; e++) acc[e] += wk * r[e];
-    }
-}
-
-/* acc += c v_{t-m}, the sample at lag m (the ring's slot head - m), elements [lo, lo + cnt). */
-static STF_VECTOR_CLONES void add_lag(const stf_history *h, int m, double c, int lo, int cnt,
-                                      double *restrict acc)
-{
-    int s = h->head - m;
-    if (s < 0) s += h->cap;
-    const float *r = h->ring + (size_t)s * (size_t)h->n_alloc * 3 + lo;
-    for (int e = 0; e < cnt; e++) acc[e] += c * r[e];
+    for (int k = j % HIST_SUB; k >= 0; k--) add_lag(h, k, h->w[k], lo, cnt, acc);
 }
 
 static int derivative_blocked(stf_history *h, int n)
@@ -529,15 +522,8 @@ static int derivative_blocked(stf_history *h, int n)
 static STF_VECTOR_CLONES void direct_sum(const stf_history *h, int m, double w_end, int lo,
                                          int cnt, double *restrict acc)
 {
-    size_t row = (size_t)h->n_alloc * 3;
     for (int e = 0; e < cnt; e++) acc[e] = 0.0;
-    for (int k = 0; k <= m; k++) {
-        int s = h->head - k;
-        if (s < 0) s += h->cap;
-        const float *r = h->ring + (size_t)s * row + lo;
-        double wk = k < m ? h->w[k] : w_end;
-        for (int e = 0; e < cnt; e++) acc[e] += wk * r[e];
-    }
+    for (int k = 0; k <= m; k++) add_lag(h, k, k < m ? h->w[k] : w_end, lo, cnt, acc);
 }
 
 void history_derivative(stf_history *h, int n)

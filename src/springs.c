@@ -381,19 +381,22 @@ int springs_step(stf_fluid *f, double dt)
            marks do not depend on which thread's array holds them */
 #pragma omp for schedule(dynamic, 256)
         for (int i = 0; i < n; i++) {
-            s->count2[i] = adjust_one(f, i, base + i, mark, dt, khist_scale, &ch, sp);
-            if (s->count2[i] > most) most = s->count2[i];
+            /* the row holds the first `stride` springs of the new list, the rest spilled
+               (out of memory before they are appended: the count of what the row holds, a
+               consistent state for a step that fails); into count2, as count[i + 2] is
+               read ahead by another particle */
+            int c = adjust_one(f, i, base + i, mark, dt, khist_scale, &ch, sp);
+            s->count2[i] = c < s->stride ? c : s->stride;
+            if (c > most) most = c;
             if (s->gain[i] > most_gain) most_gain = s->gain[i];
         }
     }
+    int32_t *tc = s->count; /* the new counts */
+    s->count = s->count2;
+    s->count2 = tc;
     int rc = 0;
     for (int t = 0; t < nt; t++) rc |= spills[t].failed ? -1 : 0;
-    /* the rows hold the first `stride` springs of each new list; the new counts are count2
-       once what did not fit is appended (out of memory: the counts of what the rows hold, a
-       consistent state for a step that fails) */
-    int old = s->stride;
-    for (int i = 0; i < n; i++) s->count[i] = s->count2[i] < old ? s->count2[i] : old;
-    if (rc == 0 && most > old) { /* widen the rows, then append what did not fit */
+    if (rc == 0 && most > s->stride) { /* widen the rows, then append what did not fit */
         rc = widen(s, n, most + most / 2);
         for (int t = 0; t < nt && rc == 0; t++)
             for (size_t k = 0; k < spills[t].len; k++) { /* each particle's in order */

@@ -15,7 +15,9 @@ typedef struct stf_springs {
     int32_t *partner; /* n_alloc * stride */
     double *rest;     /* n_alloc * stride: rest lengths L, m */
     int32_t *count;   /* n_alloc */
-    int32_t *partner2, *count2; /* the lists being rebuilt */
+    int32_t *partner2, *count2; /* count2: the step's new counts (then swapped with count);
+                                   partner2, rest2: springs_permute's scratch (the step
+                                   rewrites the rows in place) */
     double *rest2;
     int64_t *mark;    /* nthreads * n_alloc: which particle last saw a spring to j */
     int nthreads;

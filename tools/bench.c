@@ -50,8 +50,8 @@ typedef struct bench_args {
     int steps;         /* timed steps (table1, effects) */
     int warmup;        /* steps run before timing (table1, effects) */
     int full, warmup_set;
-    int repeat;        /* table1, effects, scaling: runs of each row (scaling: interleaved);
-                          the fastest counts */
+    int repeat;        /* table1, effects, scaling: rounds over the rows (interleaved); each
+                          row's fastest run counts */
     double duration;   /* accuracy: simulated seconds, 0 = default */
     double error;      /* accuracy: error budget, m */
     const char *knobs; /* accuracy: comma list of dt, spacing, history */

@@ -32,7 +32,7 @@ static void usage(FILE *to)
           "              [--k-hist K] [--profile FILE.csv]   (paper Fig. 2-4)\n"
           "  stf bench table1 [BOWLING.yaml] | effects SCENE | scaling SCENE | grid SCENE | accuracy SCENE [-o DIR] | dam SCENE\n"
           "            [--error M] [--knobs dt,spacing,history] [--steps N] [--warmup N] [--duration S]\n"
-          "            [--full] [--threads N] [--repeat R] (R runs a row, the fastest; scaling: interleaved)\n"
+          "            [--full] [--threads N] [--repeat R] (R interleaved rounds, each row's fastest)\n"
           "            [--set KEY=VALUE]... [--unset KEY]...   (cost of accuracy, paper Table 1)\n"
           "  stf sweep SCENE (--vary KEY=V1,V2,...|--vary KEY=START:STOP:COUNT)... | --list FILE\n"
           "            -o DIR [--repeat N] [--jobs N] [--threads N] [--duration S] [--set ...]\n"
