@@ -290,14 +290,18 @@ __attribute__((target("avx2"))) static int find_candidates_avx2(const double *x,
 }
 #endif
 
-/* *p holds at least need elements of `size` bytes (*cap of them, with room to grow). 0 / -1. */
+/* The array whose pointer is at p holds at least need elements of `size` bytes (*cap of
+ * them, with room to grow). The pointer is read and written as bytes (any object pointer
+ * type; no aliasing through void *). 0 / -1. */
 static int grow(void *p, size_t *cap, size_t need, size_t size)
 {
     if (need <= *cap) return 0;
     size_t c = need + need / 4 + 1024;
-    void *q = realloc(*(void **)p, c * size);
+    void *old, *q;
+    memcpy(&old, p, sizeof old);
+    q = realloc(old, c * size);
     if (!q) return -1;
-    *(void **)p = q;
+    memcpy(p, &q, sizeof q);
     *cap = c;
     return 0;
 }
