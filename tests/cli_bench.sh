@@ -12,6 +12,9 @@
 #    more than neighbours, and the neighbours per particle within 20% of each other;
 #  - scaling with a fixed dt: two rows, one substep per step, the per-substep ratio equal to
 #    the per-step one;
+#  - table1 times whole history time blocks: with a fixed dt (one sample a step) and
+#    --steps 3, the window rows time one block (16 steps for d = 50 and 150, 32 for d = 500)
+#    and the rows without a window (d = 0, soe) 3 steps;
 #  - table1 refuses a missing scene with exit 2, and an unknown benchmark is exit 2;
 #  - history.terms is refused (exit 2, key named) without mode soe and outside [1, 64].
 # usage: bash cli_bench.sh STF_BINARY PROJECT_DIR
@@ -52,6 +55,10 @@ awk '!/^#/ && $1 ~ /^[0-9]/ { rows++; if (!($3 > $4 && $4 > 0)) bad = 1; nb[rows
      END { if (rows != 2 || bad || n[2] < 7 * n[1] || nb[2] > 1.2 * nb[1] || nb[2] < nb[1] / 1.2) exit 1 }' grid.out \
     || { fail "bench grid: rows wrong"; cat grid.out >&2; }
 
+"$STF" bench table1 "$SCENE" --set fluid.spacing=0.04 --set dt_control=fixed --steps 3 --warmup 2 \
+    --threads 1 >t1.out 2>t1.err || { fail "bench table1 exited $?"; cat t1.err >&2; }
+grep -qx "# steps timed (to whole history time blocks): 3 16 16 32 3 3 16 16 32 3" t1.out \
+    || { fail "bench table1: timed steps not whole history blocks"; cat t1.out >&2; }
 "$STF" bench table1 "$WORK/missing.yaml" --steps 1 >/dev/null 2>t1.err
 [ $? -eq 2 ] || fail "table1 with a missing scene: want exit 2"
 "$STF" bench nope >/dev/null 2>&1
