@@ -12,6 +12,8 @@
 #    more than neighbours, and the neighbours per particle within 20% of each other;
 #  - scaling with a fixed dt: two rows, one substep per step, the per-substep ratio equal to
 #    the per-step one;
+#  - scaling --grow domain: the same spacing on both rows and 9-11.5x the particles (the pool
+#    widened sqrt(10)x in x and y); --grow with anything else is exit 2;
 #  - table1 times whole history time blocks: with a fixed dt (one sample a step) and
 #    --steps 3, the window rows time one block (16 steps for d = 50 and 150, 32 for d = 500)
 #    and the rows without a window (d = 0, soe) 3 steps;
@@ -70,6 +72,13 @@ grep -qx "# steps timed (to whole history time blocks): 3 16 16 32 3 3 16 16 32 
 awk '!/^#/ && $1 ~ /^[0-9]/ { rows++; if (!($7 == 1.00 && $8 == $6 && $2 > 0)) bad = 1 }
      END { if (rows != 2 || bad) exit 1 }' scaling.out \
     || { fail "bench scaling (fixed dt): rows wrong"; cat scaling.out >&2; }
+"$STF" bench scaling "$SCENE" --grow domain --set fluid.spacing=0.04 --set dt_control=fixed --steps 2 \
+    --warmup 1 --threads 1 >wide.out 2>wide.err || { fail "bench scaling --grow domain exited $?"; cat wide.err >&2; }
+awk '!/^#/ && $1 ~ /^[0-9]/ { rows++; sp[rows] = $1; n[rows] = $2 }
+     END { if (rows != 2 || sp[1] != 0.04 || sp[2] != 0.04 || n[2] < 9 * n[1] || n[2] > 11.5 * n[1]) exit 1 }' wide.out \
+    || { fail "bench scaling --grow domain: rows wrong"; cat wide.out >&2; }
+"$STF" bench scaling "$SCENE" --grow sideways >/dev/null 2>grow.err
+[ $? -eq 2 ] && grep -q -- "--grow" grow.err || fail "scaling --grow sideways: want exit 2 naming --grow"
 "$STF" bench scaling "$SCENE" --repeat 0 >/dev/null 2>rep.err
 [ $? -eq 2 ] && grep -q -- "--repeat" rep.err || fail "scaling --repeat 0: want exit 2 naming --repeat"
 # the soe history's parameter: only with mode soe, and in [1, 64]

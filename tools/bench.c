@@ -5,6 +5,9 @@
  *                                      on the bowling ball and a vibrated layer, ~20K particles
  *   stf bench effects SCENE           cost of each effect, turning them off one at a time
  *   stf bench accuracy SCENE          error vs wall time for dt, spacing and the history mode
+ *   stf bench scaling SCENE           the step at the scene's particles and at 10x as many:
+ *                                      a finer spacing (--grow spacing, the default) or a
+ *                                      wider pool at the same spacing (--grow domain)
  *   stf bench grid SCENE              the neighbour search alone: a candidate rebuild and a
  *                                      filter, at the scene's particles and at 10x as many
  *   stf bench dam SCENE               Carreau-Yasuda solver speed (issue 8): wall and steps per
@@ -55,6 +58,7 @@ typedef struct bench_args {
     double duration;   /* accuracy: simulated seconds, 0 = default */
     double error;      /* accuracy: error budget, m */
     const char *knobs; /* accuracy: comma list of dt, spacing, history */
+    int grow_domain;   /* scaling: 10x the particles by a wider pool (1) or a finer spacing */
 } bench_args;
 
 static int bad(const char *msg, const char *arg)
@@ -115,7 +119,12 @@ static int parse(int argc, char **argv, bench_args *a)
             if (*end || !(a->error > 0) || !isfinite(a->error))
                 return bad("--error must be a distance in m > 0, got", argv[i]);
         } else if (!strcmp(s, "--knobs") && more) a->knobs = argv[++i];
-        else if (!strcmp(s, "--full")) a->full = 1;
+        else if (!strcmp(s, "--grow") && more) {
+            const char *g = argv[++i];
+            if (strcmp(g, "spacing") && strcmp(g, "domain"))
+                return bad("--grow must be spacing or domain, got", g);
+            a->grow_domain = !strcmp(g, "domain");
+        } else if (!strcmp(s, "--full")) a->full = 1;
         else if (s[0] == '-') return bad("unknown or incomplete option", s);
         else if (!a->scene) a->scene = s;
         else return bad("unexpected argument", s);
@@ -457,12 +466,67 @@ static int with_spacing(const bench_args *a, double spacing, stf_override *ov, c
 }
 
 /* The scene at its spacing and at spacing / 10^(1/3) (10x the particles): cost per step. */
+/* --grow domain: the scene with its pool widened sqrt(10) times in x and y about the
+ * container's centre (every fluid box's corners and the container's inner size), at the same
+ * spacing, so about 10x the particles with the same physics per particle (the same dt limit,
+ * the same neighbours); the bodies stay where they are. Box blocks only (a ball block is not
+ * a pool). Returns the overrides' count, -1 (message printed) when the scene has no
+ * container or a ball block. */
+enum { WIDE_OV = 2 * 16 + 1 };
+static int widened(const bench_args *a, stf_override *ov, char keys[WIDE_OV][48],
+                   char vals[WIDE_OV][96])
+{
+    char err[2048];
+    stf_scene *sc;
+    if (stf_scene_load(a->scene, a->ov, a->nov, &sc, err, sizeof err) != 0) {
+        fprintf(stderr, "%s\n", err);
+        return -1;
+    }
+    int nov = 0, rc = 0;
+    for (int i = 0; i < a->nov; i++) ov[nov++] = a->ov[i];
+    const double f = sqrt(10.0), *c = sc->container.position;
+    if (!sc->container.present || sc->nblocks < 1 || 2 * sc->nblocks + 1 > WIDE_OV) {
+        fprintf(stderr, "stf bench scaling --grow domain: %s needs a container and 1 to %d fluid "
+                "blocks\n", a->scene, (WIDE_OV - 1) / 2);
+        rc = -1;
+    }
+    for (int b = 0; b < sc->nblocks && rc == 0; b++) {
+        const stf_block *bl = &sc->blocks[b];
+        if (bl->radius > 0) {
+            fprintf(stderr, "stf bench scaling --grow domain: %s:%d: fluid block %d is a ball, "
+                    "not a pool\n", a->scene, bl->line, b);
+            rc = -1;
+            break;
+        }
+        for (int e = 0; e < 2; e++) {
+            const double *p = e ? bl->hi : bl->lo;
+            int k = 2 * b + e;
+            snprintf(keys[k], sizeof keys[k], "fluid.blocks.%d.%s", b, e ? "max" : "min");
+            snprintf(vals[k], sizeof vals[k], "[%.17g, %.17g, %.17g]", c[0] + f * (p[0] - c[0]),
+                     c[1] + f * (p[1] - c[1]), p[2]);
+            ov[nov++] = (stf_override){keys[k], vals[k]};
+        }
+    }
+    if (rc == 0) {
+        int k = 2 * sc->nblocks;
+        const double *z = sc->container.size;
+        snprintf(keys[k], sizeof keys[k], "container.size");
+        const double g = f * (1.0 + 1e-12); /* a hair wider than the corners, whatever their rounding */
+        snprintf(vals[k], sizeof vals[k], "[%.17g, %.17g, %.17g]", g * z[0], g * z[1], z[2]);
+        ov[nov++] = (stf_override){keys[k], vals[k]};
+    }
+    stf_scene_free(sc);
+    return rc == 0 ? nov : -1;
+}
+
 static int bench_scaling(const bench_args *a)
 {
     double spk[2];
     if (two_spacings(a, spk) != 0) return 2;
-    printf("# stf bench scaling %s: %d timed steps after %d warm-up steps, %d run(s) of each\n",
-           a->scene, a->steps, a->warmup, a->repeat);
+    if (a->grow_domain) spk[1] = spk[0];
+    printf("# stf bench scaling %s: %d timed steps after %d warm-up steps, %d run(s) of each; "
+           "10x the particles by %s\n", a->scene, a->steps, a->warmup, a->repeat,
+           a->grow_domain ? "a wider pool (--grow domain)" : "a finer spacing");
     print_load();
     printf("%12s %9s %10s %10s %14s %8s %9s %9s %9s %6s %7s |", "spacing m", "n", "step ms",
            "cpu ms", "particles/s", "x time", "substeps", "x substep", "rebuilds", "nbrs",
@@ -475,9 +539,11 @@ static int bench_scaling(const bench_args *a)
     double slowest[2] = {0, 0};
     for (int r = 0; r < a->repeat; r++)
         for (int k = 0; k < 2; k++) {
-            stf_override ov[MAX_OV + 1];
-            char v[64];
-            int nov = with_spacing(a, spk[k], ov, v);
+            stf_override ov[MAX_OV + WIDE_OV];
+            char v[64], keys[WIDE_OV][48], vals[WIDE_OV][96];
+            int nov = k == 1 && a->grow_domain ? widened(a, ov, keys, vals)
+                                               : with_spacing(a, spk[k], ov, v);
+            if (nov < 0) return 2;
             timing t;
             int rc = time_scene(a->scene, NULL, ov, nov, a->warmup, a->steps, &t);
             if (rc) return rc;

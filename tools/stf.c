@@ -33,6 +33,7 @@ static void usage(FILE *to)
           "  stf bench table1 [BOWLING.yaml] | effects SCENE | scaling SCENE | grid SCENE | accuracy SCENE [-o DIR] | dam SCENE\n"
           "            [--error M] [--knobs dt,spacing,history] [--steps N] [--warmup N] [--duration S]\n"
           "            [--full] [--threads N] [--repeat R] (R interleaved rounds, each row's fastest)\n"
+          "            [--grow spacing|domain]   (scaling: 10x the particles by a finer spacing or a wider pool)\n"
           "            [--set KEY=VALUE]... [--unset KEY]...   (cost of accuracy, paper Table 1)\n"
           "  stf sweep SCENE (--vary KEY=V1,V2,...|--vary KEY=START:STOP:COUNT)... | --list FILE\n"
           "            -o DIR [--repeat N] [--jobs N] [--threads N] [--duration S] [--set ...]\n"
