@@ -8,6 +8,10 @@
 #  - accuracy --knobs history: writes the CSV (one row per setting) and a PNG; the reference
 #    (full history) has zero error; the sum-of-exponentials history with 16 terms is closer to
 #    the full history than a 10-step window is;
+#  - accuracy --knobs solver on the Carreau-Yasuda dam break: four settings of the solvers'
+#    tolerances (x0.1 the reference, with zero error), every error finite and under 5 mm
+#    (the tolerances move the fluid, not the flow); a knob that does not apply to the scene
+#    (solver on the bowling ball) and an unknown knob are exit 2, no directory made;
 #  - grid: two rows (the scene's particles and about 10x as many), candidates per particle
 #    more than neighbours, and the neighbours per particle within 20% of each other;
 #  - scaling with a fixed dt: two rows, one substep per step, the per-substep ratio equal to
@@ -50,6 +54,22 @@ assert err("soe K=16") < err("window d=10"), (err("soe K=16"), err("window d=10"
 assert all(float(r["cpu_s"]) > 0 for r in rows.values())
 PY
 grep -q "^cheapest history" acc.out || fail "bench accuracy names no cheapest setting"
+
+"$STF" bench accuracy "$PROJ/scenes/cy_dam_break.yaml" --knobs solver --full --duration 0.08 --threads 1 \
+    -o accs >accs.out 2>accs.err || { fail "bench accuracy --knobs solver exited $?"; cat accs.err >&2; }
+/usr/bin/python3 - accs/accuracy.csv <<'PY' || fail "accuracy.csv (solver) wrong"
+import csv, math, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+assert [r["setting"] for r in rows] == ["tolerances x0.1", "tolerances x0.3", "tolerances x1",
+                                        "tolerances x3"], rows
+errs = [float(r["err_fluid_com_m"]) for r in rows]
+assert errs[0] == 0.0 and all(math.isfinite(e) and e < 0.005 for e in errs), errs
+PY
+"$STF" bench accuracy "$SCENE" --knobs solver -o nosolver >/dev/null 2>ns.err
+[ $? -eq 2 ] && grep -q "no knob of 'solver' applies" ns.err && [ ! -e nosolver ] \
+    || fail "accuracy --knobs solver on the bowling ball: want exit 2, no directory"
+"$STF" bench accuracy "$SCENE" --knobs dt,speed -o nosolver >/dev/null 2>nk.err
+[ $? -eq 2 ] && grep -q "unknown 'speed'" nk.err && [ ! -e nosolver ] || fail "accuracy --knobs dt,speed: want exit 2"
 
 "$STF" bench grid "$SCENE" --set fluid.spacing=0.04 --steps 2 --threads 1 >grid.out 2>grid.err \
     || { fail "bench grid exited $?"; cat grid.err >&2; }

@@ -4,7 +4,8 @@
  *                                      of the history terms, history memory, d = 0/50/150/500)
  *                                      on the bowling ball and a vibrated layer, ~20K particles
  *   stf bench effects SCENE           cost of each effect, turning them off one at a time
- *   stf bench accuracy SCENE          error vs wall time for dt, spacing and the history mode
+ *   stf bench accuracy SCENE          error vs wall time for dt, spacing, the history mode and
+ *                                      (Carreau-Yasuda scenes) the solvers' tolerances
  *   stf bench scaling SCENE           the step at the scene's particles and at 10x as many:
  *                                      a finer spacing (--grow spacing, the default) or a
  *                                      wider pool at the same spacing (--grow domain)
@@ -57,7 +58,7 @@ typedef struct bench_args {
                           row's fastest run counts */
     double duration;   /* accuracy: simulated seconds, 0 = default */
     double error;      /* accuracy: error budget, m */
-    const char *knobs; /* accuracy: comma list of dt, spacing, history */
+    const char *knobs; /* accuracy: comma list of dt, spacing, history, solver */
     int grow_domain;   /* scaling: 10x the particles by a wider pool (1) or a finer spacing */
 } bench_args;
 
@@ -118,7 +119,18 @@ static int parse(int argc, char **argv, bench_args *a)
             a->error = strtod(argv[++i], &end);
             if (*end || !(a->error > 0) || !isfinite(a->error))
                 return bad("--error must be a distance in m > 0, got", argv[i]);
-        } else if (!strcmp(s, "--knobs") && more) a->knobs = argv[++i];
+        } else if (!strcmp(s, "--knobs") && more) {
+            a->knobs = argv[++i];
+            /* a comma list of known knobs, each once at most */
+            char buf[256];
+            if (strlen(a->knobs) >= sizeof buf) return bad("--knobs: too long:", a->knobs);
+            strcpy(buf, a->knobs);
+            for (char *save = NULL, *k = strtok_r(buf, ",", &save); k; k = strtok_r(NULL, ",", &save))
+                if (strcmp(k, "dt") && strcmp(k, "spacing") && strcmp(k, "history") &&
+                    strcmp(k, "solver"))
+                    return bad("--knobs: a comma list of dt, spacing, history, solver; unknown", k);
+            if (!a->knobs[0]) return bad("--knobs: empty list", a->knobs);
+        }
         else if (!strcmp(s, "--grow") && more) {
             const char *g = argv[++i];
             if (strcmp(g, "spacing") && strcmp(g, "domain"))
@@ -636,7 +648,7 @@ static int bench_grid(const bench_args *a)
 
 typedef struct acc_run {
     char knob[16], setting[48];
-    double value;     /* the knob's value (dt s, spacing m, history: terms or d) */
+    double value;     /* the knob's value (dt s, spacing m, solver: tolerance factor) */
     double wall;      /* s, the run's own wall clock of its steps */
     double cpu;       /* s, user + system time of the whole child process */
     int ok;
@@ -782,8 +794,9 @@ static void plot_pareto(const char *path, acc_run *runs, int nruns, double budge
 {
     static const float BLACK[3] = {0, 0, 0}, GRID[3] = {0.85f, 0.85f, 0.85f},
                        WHITE[3] = {1, 1, 1}, RED[3] = {0.8f, 0.1f, 0.1f};
-    static const float col[3][3] = {{0.12f, 0.35f, 0.75f}, {0.9f, 0.5f, 0.05f}, {0.1f, 0.6f, 0.2f}};
-    static const char *const knobs[3] = {"dt", "spacing", "history"};
+    static const float col[4][3] = {{0.12f, 0.35f, 0.75f}, {0.9f, 0.5f, 0.05f}, {0.1f, 0.6f, 0.2f},
+                                    {0.6f, 0.2f, 0.7f}};
+    static const char *const knobs[4] = {"dt", "spacing", "history", "solver"};
     int W = 1000, H = 700, x0 = 110, x1 = 960, y0 = 80, y1 = 610;
     canvas *c = canvas_new(W, H);
     if (!c) return;
@@ -826,7 +839,7 @@ static void plot_pareto(const char *path, acc_run *runs, int nruns, double budge
     canvas_text_halo(c, x1 - 10 - canvas_text_width(buf, 2), (int)PY(budget) - 20, buf, RED, WHITE, 2);
     canvas_text(c, x0, 20, "error vs cost (each knob against its finest setting)", BLACK, 2);
     canvas_text(c, x0, 44, "y: rms body path error, m (reference: 1e-5)   x: cpu time, s", BLACK, 2);
-    for (int k = 0; k < 3; k++) {
+    for (int k = 0; k < 4; k++) {
         double px = 0, py = 0;
         char series[16] = "";
         for (int i = 0; i < nruns; i++) {
@@ -862,23 +875,21 @@ static int bench_accuracy(const bench_args *a, const char *self)
     }
     double dt = sc->dt, sp = sc->fluid.spacing;
     int hist = (sc->fluid.effects & STF_EFFECT_HISTORY) != 0;
+    int cy = sc->fluid.model == STF_MODEL_CARREAU_YASUDA;
+    double eta = sc->fluid.cy.eta, cg_tol = sc->fluid.cy.cg_tolerance;
     double duration = a->duration > 0 ? a->duration : a->full ? sc->duration : fmin(sc->duration, 0.6);
     stf_scene_free(sc);
     /* Short by default: the spacing the cli_bowling test uses and 0.6 s (the impact). */
     double base_sp = a->full ? sp : fmax(sp, 0.025);
     const char *dir = a->out ? a->out : "bench_accuracy";
-    if (mkdir(dir, 0777) != 0 && errno != EEXIST) {
-        fprintf(stderr, "stf bench: cannot create %s: %s\n", dir, strerror(errno));
-        return 2;
-    }
-    const char *knobs = a->knobs ? a->knobs : "dt,spacing,history";
+    const char *knobs = a->knobs ? a->knobs : "dt,spacing,history,solver";
     acc_run runs[64];
     int nruns = 0;
     memset(runs, 0, sizeof runs);
     /* Settings, finest first: the first of each knob is its reference. */
-    for (int k = 0; k < 3; k++) {
-        static const char *const names[3] = {"dt", "spacing", "history"};
-        if (!strstr(knobs, names[k]) || (k == 2 && !hist)) continue;
+    for (int k = 0; k < 4; k++) {
+        static const char *const names[4] = {"dt", "spacing", "history", "solver"};
+        if (!strstr(knobs, names[k]) || (k == 2 && !hist) || (k == 3 && !cy)) continue;
         int first = nruns;
         if (k == 0) {
             static const double f[] = {0.25, 0.5, 1.0, 2.0};
@@ -896,6 +907,17 @@ static int bench_accuracy(const bench_args *a, const char *self)
                 r->value = base_sp * f[i];
                 snprintf(r->setting, sizeof r->setting, "spacing=%.4g", r->value);
             }
+        } else if (k == 3) {
+            /* the Carreau-Yasuda solvers' tolerances (pressure projection eta, implicit
+               viscosity cg_tolerance) times f, finest first: their iterations are the cost */
+            static const double f[] = {0.1, 0.3, 1.0, 3.0};
+            for (int i = 0; i < 4; i++) {
+                if (!(eta * f[i] < 1 && cg_tol * f[i] < 1)) continue; /* both must be < 1 */
+                acc_run *r = &runs[nruns++];
+                strcpy(r->knob, "solver");
+                r->value = f[i];
+                snprintf(r->setting, sizeof r->setting, "tolerances x%g", f[i]);
+            }
         } else {
             static const char *const s[] = {"full", "window d=500", "window d=150", "window d=50",
                                             "window d=10", "soe K=16", "soe K=8", "soe K=4"};
@@ -907,12 +929,21 @@ static int bench_accuracy(const bench_args *a, const char *self)
         }
         (void)first;
     }
+    if (nruns == 0) {
+        fprintf(stderr, "stf bench accuracy: no knob of '%s' applies to %s (history needs "
+                "effects.history; solver needs the carreau_yasuda model)\n", knobs, a->scene);
+        return 2;
+    }
+    if (mkdir(dir, 0777) != 0 && errno != EEXIST) {
+        fprintf(stderr, "stf bench: cannot create %s: %s\n", dir, strerror(errno));
+        return 2;
+    }
     printf("# stf bench accuracy %s: %.3g s simulated, base spacing %g m, base dt %g s\n", a->scene,
            duration, base_sp, dt);
     print_load();
     for (int i = 0; i < nruns; i++) {
         acc_run *r = &runs[i];
-        char path[1024], v1[64], v2[64], v3[64];
+        char path[1024], v1[64], v2[64], v3[64], v4[64];
         snprintf(path, sizeof path, "%s/run%02d.h5", dir, i);
         const char *extra[12];
         int ne = 0;
@@ -921,6 +952,12 @@ static int bench_accuracy(const bench_args *a, const char *self)
         if (!strcmp(r->knob, "dt")) {
             snprintf(v2, sizeof v2, "dt=%.9g", r->value);
             extra[ne++] = "--set", extra[ne++] = v2;
+        }
+        if (!strcmp(r->knob, "solver")) {
+            snprintf(v2, sizeof v2, "effects.carreau_yasuda.eta=%.9g", eta * r->value);
+            snprintf(v4, sizeof v4, "effects.carreau_yasuda.cg_tolerance=%.9g", cg_tol * r->value);
+            extra[ne++] = "--set", extra[ne++] = v2;
+            extra[ne++] = "--set", extra[ne++] = v4;
         }
         if (!strcmp(r->knob, "history")) {
             if (!strncmp(r->setting, "full", 4)) {

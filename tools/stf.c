@@ -31,7 +31,7 @@ static void usage(FILE *to)
           "  stf history [--fig 2|3|4|all] [-o DIR] [--q 0.2,0.5,0.8] [--d 50,150,500] [--dt S]\n"
           "              [--k-hist K] [--profile FILE.csv]   (paper Fig. 2-4)\n"
           "  stf bench table1 [BOWLING.yaml] | effects SCENE | scaling SCENE | grid SCENE | accuracy SCENE [-o DIR] | dam SCENE\n"
-          "            [--error M] [--knobs dt,spacing,history] [--steps N] [--warmup N] [--duration S]\n"
+          "            [--error M] [--knobs dt,spacing,history,solver] [--steps N] [--warmup N] [--duration S]\n"
           "            [--full] [--threads N] [--repeat R] (R interleaved rounds, each row's fastest)\n"
           "            [--grow spacing|domain]   (scaling: 10x the particles by a finer spacing or a wider pool)\n"
           "            [--set KEY=VALUE]... [--unset KEY]...   (cost of accuracy, paper Table 1)\n"
