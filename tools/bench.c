@@ -125,13 +125,13 @@ static int parse(int argc, char **argv, bench_args *a)
             char buf[256];
             if (strlen(a->knobs) >= sizeof buf) return bad("--knobs: too long:", a->knobs);
             strcpy(buf, a->knobs);
-            for (char *save = NULL, *k = strtok_r(buf, ",", &save); k; k = strtok_r(NULL, ",", &save))
+            char *save = NULL;
+            for (char *k = strtok_r(buf, ",", &save); k; k = strtok_r(NULL, ",", &save))
                 if (strcmp(k, "dt") && strcmp(k, "spacing") && strcmp(k, "history") &&
                     strcmp(k, "solver"))
                     return bad("--knobs: a comma list of dt, spacing, history, solver; unknown", k);
             if (!a->knobs[0]) return bad("--knobs: empty list", a->knobs);
-        }
-        else if (!strcmp(s, "--grow") && more) {
+        } else if (!strcmp(s, "--grow") && more) {
             const char *g = argv[++i];
             if (strcmp(g, "spacing") && strcmp(g, "domain"))
                 return bad("--grow must be spacing or domain, got", g);
@@ -213,9 +213,9 @@ static int time_scene(const char *path, const char *text, const stf_override *ov
     /* Whole time blocks: a block's pass (the ring read once) serves tblock samples, and a
        step pushes one sample per substep (adaptive dt). So the timed steps start and end on
        a block's edge: with the history window they run until `steps` samples or more were
-       pushed and the count is whole blocks (at most 4 x max(steps, tblock) steps), otherwise `steps`
-       steps. 32 steps of 1.09 substeps each (the bowling ball's impact) would hold two
-       passes for 35 samples, 1.8x the passes of a long run. The figures are per step
+       pushed and the count is whole blocks (at most 4 max(steps, tblock) steps), otherwise
+       `steps` steps. 32 steps of 1.09 substeps each (the bowling ball's impact) would hold
+       two passes for 35 samples, 1.8x the passes of a long run. The figures are per step
        timed. */
     for (int s = 0; block && s < steps && hh->pushed % block && rc == 0; s++)
         rc = stf_sim_step(sim); /* to the edge of a block (the forced window starts on one) */
@@ -477,7 +477,6 @@ static int with_spacing(const bench_args *a, double spacing, stf_override *ov, c
     return nov;
 }
 
-/* The scene at its spacing and at spacing / 10^(1/3) (10x the particles): cost per step. */
 /* --grow domain: the scene with its pool widened sqrt(10) times in x and y about the
  * container's centre (every fluid box's corners and the container's inner size), at the same
  * spacing, so about 10x the particles with the same physics per particle (the same dt limit,
@@ -523,7 +522,7 @@ static int widened(const bench_args *a, stf_override *ov, char keys[WIDE_OV][48]
         int k = 2 * sc->nblocks;
         const double *z = sc->container.size;
         snprintf(keys[k], sizeof keys[k], "container.size");
-        const double g = f * (1.0 + 1e-12); /* a hair wider than the corners, whatever their rounding */
+        const double g = f * (1.0 + 1e-12); /* a hair wider than the corners' rounding */
         snprintf(vals[k], sizeof vals[k], "[%.17g, %.17g, %.17g]", g * z[0], g * z[1], z[2]);
         ov[nov++] = (stf_override){keys[k], vals[k]};
     }
@@ -531,6 +530,8 @@ static int widened(const bench_args *a, stf_override *ov, char keys[WIDE_OV][48]
     return rc == 0 ? nov : -1;
 }
 
+/* The scene at its spacing and at 10x the particles (spacing / 10^(1/3), or the pool
+ * widened): cost per step. */
 static int bench_scaling(const bench_args *a)
 {
     double spk[2];
