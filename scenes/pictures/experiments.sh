@@ -14,7 +14,7 @@ run() { local tag=$1; shift; "$stf" run "$@" -o "$out/$tag.h5" --quiet; "$stf" r
 run drop_no_history scenes/fluid_drop_no_history.yaml
 for d in 50 150 250; do run drop_d$d scenes/fluid_drop.yaml --set effects.history.d=$d; done
 for t in drop_no_history drop_d50 drop_d150 drop_d250; do
-    "$stf" render "$out/$t.h5" --color khist --max 30000 --frames 17,21,40,199 --width 320 --height 200 \
+    "$stf" render "$out/$t.h5" --color khist --max 30000 --frames 17,22,33,199 --width 320 --height 200 \
         --camera 0.3,-0.36,0.22 --look 0,0,0.03 --montage "$pic/fluid_$t.png"
 done
 
