@@ -77,3 +77,50 @@ pistons 1 >"$DIR/sources.yaml"; pistons 0 >"$DIR/sources_no_history.yaml"
 pair sources "$DIR/sources.yaml" "$DIR/sources_no_history.yaml"
 pair sources_onset0 "$DIR/sources.yaml" "$DIR/sources_no_history.yaml" --set effects.history.k_onset=0
 pair sources_d500 "$DIR/sources.yaml" "$DIR/sources_no_history.yaml" --set effects.history.d=500
+
+# A thin layer at 1 cm (20 x 20 x 4 cm, 1,600 particles, d = 150) shaken at 10, 20, 30 Hz with
+# 2, 5, 10 mm (0.8-36 g), k_hist 5e4 and 2e5, onset 0 and 3000, against the same without
+# history: `stf sweep` of each, and the ratio of the finger heights (about 4 s of CPU a run).
+thin() { # thin HISTORY(0|1)
+    cat <<YAML
+name: thin_layer
+duration: 3.0
+dt: 0.001
+frame_rate: 30
+fluid:
+  model: clavet_stf
+  spacing: 0.01
+  density: 1270
+  blocks:
+    - {min: [-0.1, -0.1, 0.0], max: [0.1, 0.1, 0.04]}
+effects:
+  gravity: {g: [0, 0, -9.81]}
+  viscosity: {sigma: 10.0}
+  pressure: {k: 1000, k_near: 200}
+  springs: {k_min: 100, yield_ratio: 0.0, plasticity: 2.0}
+YAML
+    [ "$1" = 1 ] && cat <<YAML
+  history: {q: 0.5, d: 150, k_hist: 200000, reference_spacing: 0.02, k_onset: 0}
+  boundary_stick: {stick: 200}
+YAML
+    cat <<YAML
+container:
+  size: [0.2, 0.2, 0.25]
+  wall: 0.02
+  friction: 0.2
+  motion: kinematic
+  vibration: {axis: [0, 0, 1], amplitude: 0.003, frequency: 20, jitter: 0.3, jitter_period: 0.25, seed: 7}
+YAML
+}
+thin 1 >"$DIR/thin.yaml"; thin 0 >"$DIR/thin_no_history.yaml"
+F=container.vibration.frequency=10,20,30; A=container.vibration.amplitude=0.002,0.005,0.01
+"$STF" sweep "$DIR/thin_no_history.yaml" --vary $F --vary $A -o "$DIR/thin_none" --jobs 2 --threads 1 >/dev/null
+"$STF" sweep "$DIR/thin.yaml" --vary $F --vary $A --vary effects.history.k_hist=50000,200000 \
+    --vary effects.history.k_onset=0,3000 -o "$DIR/thin_hist" --jobs 2 --threads 1 >/dev/null
+/usr/bin/python3 - "$DIR/thin_none/summary.csv" "$DIR/thin_hist/summary.csv" <<'PY'
+import csv, sys
+key = lambda r: (r["container.vibration.frequency"], r["container.vibration.amplitude"])
+none = {key(r): float(r["fluid.finger_height"]) for r in csv.DictReader(open(sys.argv[1]))}
+ratios = [float(r["fluid.finger_height"]) / none[key(r)] for r in csv.DictReader(open(sys.argv[2]))]
+print("thin layer: finger height with / without history, %d runs: %.2f .. %.2f" % (len(ratios), min(ratios), max(ratios)))
+PY
