@@ -1,7 +1,8 @@
 # cli_run.sh - `stf run` end to end: a small scene with every effect runs, the HDF5 file has
 # the documented layout (frames Step#N with float32 x,y,z,vx,vy,vz and an increasing
 # TimeValue; root attributes; /metrics with a JSON attribute), the XDMF companion exists,
-# h5dump reads the file, `stf report --json` prints valid JSON, and --set / --unset runs work.
+# h5dump reads the file, `stf report --json` prints valid JSON, and --set / --unset runs work;
+# `stf CMD --help` (and -h) prints that command's usage to stdout, exit 0, for every command.
 #
 # usage: bash cli_run.sh STF_BINARY PROJECT_DIR   (run in the build's tests directory)
 . "$(dirname "$0")/lib_cli.sh" cli_run "$@"
@@ -166,6 +167,15 @@ if int(b.attrs.get("history_steps", 0)) != 0:
 EOF
 fi
 
+# every command's --help / -h: its own usage lines on stdout, exit 0
+for c in run check report render plot history bench sweep; do
+    for h in --help -h; do
+        "$STF" $c $h >help.out 2>help.err
+        r=$?
+        [ $r -eq 0 ] && grep -q "stf $c" help.out || fail "stf $c $h: exit $r, or no 'stf $c' usage on stdout"
+    done
+done
+"$STF" run --help | grep -q "stf bench" && fail "stf run --help: prints other commands' usage"
 if [ $fails -ne 0 ]; then
     echo "cli_run: $fails failure(s)" >&2
     exit 1

@@ -14,34 +14,51 @@
 #include "history_cli.h"
 #include "pictures.h"
 
-static void usage(FILE *to)
+static const char usage_text[] =
+    "usage:\n"
+    "  stf run SCENE [-o OUT.h5] [--set KEY=VALUE]... [--unset KEY]... [--duration S]\n"
+    "              [--threads N] [--quiet] [--checkpoint S|off]\n"
+    "              (--checkpoint: wall-clock seconds between checkpoints, default 60;\n"
+    "              0: every frame; also taken on SIGINT/SIGTERM)\n"
+    "  stf run --resume OUT.h5 | stf run SCENE [-o OUT.h5] --resume   (continue a stopped\n"
+    "              run from its checkpoint, bit-identical; scene from the file or checked)\n"
+    "  stf check SCENE [-o OUT.h5] [--set ...] [--unset ...] [--duration S] [--threads N]\n"
+    "  stf report OUT.h5 [--json]\n"
+    "  stf render OUT.h5 [-o DIR] [--frames all|N|A:B|a,b,c] [--every K] [--color speed|khist|none]\n"
+    "             [--width W] [--height H] [--camera x,y,z] [--look x,y,z] [--montage FILE.png]\n"
+    "  stf plot OUT.h5 [-o FILE.png] [--body NAME]\n"
+    "  stf history [--fig 2|3|4|all] [-o DIR] [--q 0.2,0.5,0.8] [--d 50,150,500] [--dt S]\n"
+    "              [--k-hist K] [--profile FILE.csv]   (paper Fig. 2-4)\n"
+    "  stf bench table1 [BOWLING.yaml] | effects SCENE | scaling SCENE | grid SCENE | accuracy SCENE [-o DIR] | dam SCENE\n"
+    "            [--error M] [--knobs dt,spacing,history,solver] [--steps N] [--warmup N] [--duration S]\n"
+    "            [--full] [--threads N] [--repeat R] (R interleaved rounds, each row's fastest)\n"
+    "            [--grow spacing|domain]   (scaling: 10x the particles by a finer spacing or a wider pool)\n"
+    "            [--set KEY=VALUE]... [--unset KEY]...   (cost of accuracy, paper Table 1)\n"
+    "  stf sweep SCENE (--vary KEY=V1,V2,...|--vary KEY=START:STOP:COUNT)... | --list FILE\n"
+    "            -o DIR [--repeat N] [--jobs N] [--threads N] [--duration S] [--set ...]\n"
+    "            [--plot METRIC] [--x KEY] [--series KEY] [--png FILE]   (DIR/summary.csv, .png;\n"
+    "            under mpirun the runs are spread over the ranks)\n"
+    "exit codes: 0 ok, 1 expectation failed, 2 bad input, 3 numerical failure, "
+    "130 interrupted\n";
+
+static void usage(FILE *to) { fputs(usage_text, to); }
+
+/* `stf CMD --help`: the usage lines of CMD (those from "  stf CMD " up to the next command's),
+ * and the exit codes. */
+static int command_help(const char *cmd)
 {
-    fputs("usage:\n"
-          "  stf run SCENE [-o OUT.h5] [--set KEY=VALUE]... [--unset KEY]... [--duration S]\n"
-          "              [--threads N] [--quiet] [--checkpoint S|off]\n"
-          "              (--checkpoint: wall-clock seconds between checkpoints, default 60;\n"
-          "              0: every frame; also taken on SIGINT/SIGTERM)\n"
-          "  stf run --resume OUT.h5 | stf run SCENE [-o OUT.h5] --resume   (continue a stopped\n"
-          "              run from its checkpoint, bit-identical; scene from the file or checked)\n"
-          "  stf check SCENE [-o OUT.h5] [--set ...] [--unset ...] [--duration S] [--threads N]\n"
-          "  stf report OUT.h5 [--json]\n"
-          "  stf render OUT.h5 [-o DIR] [--frames all|N|A:B|a,b,c] [--every K] [--color speed|khist|none]\n"
-          "             [--width W] [--height H] [--camera x,y,z] [--look x,y,z] [--montage FILE.png]\n"
-          "  stf plot OUT.h5 [-o FILE.png] [--body NAME]\n"
-          "  stf history [--fig 2|3|4|all] [-o DIR] [--q 0.2,0.5,0.8] [--d 50,150,500] [--dt S]\n"
-          "              [--k-hist K] [--profile FILE.csv]   (paper Fig. 2-4)\n"
-          "  stf bench table1 [BOWLING.yaml] | effects SCENE | scaling SCENE | grid SCENE | accuracy SCENE [-o DIR] | dam SCENE\n"
-          "            [--error M] [--knobs dt,spacing,history,solver] [--steps N] [--warmup N] [--duration S]\n"
-          "            [--full] [--threads N] [--repeat R] (R interleaved rounds, each row's fastest)\n"
-          "            [--grow spacing|domain]   (scaling: 10x the particles by a finer spacing or a wider pool)\n"
-          "            [--set KEY=VALUE]... [--unset KEY]...   (cost of accuracy, paper Table 1)\n"
-          "  stf sweep SCENE (--vary KEY=V1,V2,...|--vary KEY=START:STOP:COUNT)... | --list FILE\n"
-          "            -o DIR [--repeat N] [--jobs N] [--threads N] [--duration S] [--set ...]\n"
-          "            [--plot METRIC] [--x KEY] [--series KEY] [--png FILE]   (DIR/summary.csv, .png;\n"
-          "            under mpirun the runs are spread over the ranks)\n"
-          "exit codes: 0 ok, 1 expectation failed, 2 bad input, 3 numerical failure, "
-          "130 interrupted\n",
-          to);
+    char head[32];
+    snprintf(head, sizeof head, "  stf %s ", cmd);
+    int on = 0;
+    for (const char *l = usage_text; *l;) {
+        const char *e = strchr(l, '\n');
+        size_t len = e ? (size_t)(e - l + 1) : strlen(l);
+        if (!strncmp(l, "  stf ", 6)) on = !strncmp(l, head, strlen(head));
+        if (on || !strncmp(l, "exit codes", 10) || !strncmp(l, "usage:", 6))
+            fwrite(l, 1, len, stdout);
+        l += len;
+    }
+    return 0;
 }
 
 int main(int argc, char **argv)
@@ -51,6 +68,11 @@ int main(int argc, char **argv)
         return argc < 2 ? 2 : 0;
     }
     const char *cmd = argv[1];
+    static const char *const own_help[] = {"run", "check", "report", "plot", "bench"};
+    for (size_t k = 0; k < sizeof own_help / sizeof *own_help; k++)
+        if (!strcmp(cmd, own_help[k]) && argc > 2 &&
+            (!strcmp(argv[2], "-h") || !strcmp(argv[2], "--help")))
+            return command_help(cmd);
     if (!strcmp(cmd, "run")) return cli_run(argc - 2, argv + 2, 0);
     if (!strcmp(cmd, "check")) return cli_run(argc - 2, argv + 2, 1);
     if (!strcmp(cmd, "report")) return cli_report(argc - 2, argv + 2);
