@@ -606,8 +606,12 @@ static int permute_gather(stf_history *h, const int *perm, int n)
 int history_permute(stf_history *h, const int *perm, int n)
 {
     if (h->terms) return history_soe_permute(h, perm, n);
-    if (n > h->n_alloc) return -1;
-    add_rows(h, n); /* particles added since the last push */
+    /* particles added since the last push get their rows first: perm names particles up to
+       the count before the permutation, which may exceed n (some removed) and the rows */
+    int before = n;
+    for (int i = 0; i < n; i++) before = perm[i] >= before ? perm[i] + 1 : before;
+    if (before > h->n_alloc) return -1;
+    add_rows(h, before);
     /* a short ring is moved as before (cheaper than the map's gathers and scatters) */
     if (n < h->rows || h->cap <= HIST_MAP_SLOTS) return permute_gather(h, perm, n);
     /* A re-sort of a long ring: only the row -> particle map changes; the ring (12 n d
