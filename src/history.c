@@ -591,10 +591,16 @@ static int permute_gather(stf_history *h, const int *perm, int n)
     for (int r = 0; r < rows; r++) row_of[h->part[r]] = r;
     for (int i = 0; i < n; i++) src[i] = row_of[perm[i]];
     int rc = permute_rows_f(h->ring, (size_t)h->n_alloc * 3, h->cap, src, n, rows);
-    /* old is per row: reordered, it equals a recomputed one */
-    if (rc == 0 && h->old_n0 >= 0 &&
-        permute_rows_d(h->old, (size_t)h->n_old * 3, h->tblock, src, n, rows) != 0)
+    /* old is per row: reordered, it equals a recomputed one. Not reordered (none valid, or
+       out of memory), it is dropped: a pass fills only the rows in use, and a particle added
+       later in the block takes a row past them, whose older sums must be zero */
+    if (rc == 0 && (h->old_n0 < 0 ||
+                    permute_rows_d(h->old, (size_t)h->n_old * 3, h->tblock, src, n, rows) != 0)) {
+        free(h->old);
+        h->old = NULL;
+        h->n_old = 0;
         h->old_n0 = -1; /* recomputed at the next step */
+    }
     free(src);
     if (rc != 0) return -1;
     for (int r = 0; r < rows; r++) h->part[r] = r < n ? r : -1;
@@ -606,8 +612,12 @@ static int permute_gather(stf_history *h, const int *perm, int n)
 int history_permute(stf_history *h, const int *perm, int n)
 {
     if (h->terms) return history_soe_permute(h, perm, n);
-    if (n > h->n_alloc) return -1;
-    add_rows(h, n); /* particles added since the last push */
+    /* particles added since the last push get their rows first: perm names particles up to
+       the count before the permutation, which may exceed n (some removed) and the rows */
+    int before = n;
+    for (int i = 0; i < n; i++) before = perm[i] >= before ? perm[i] + 1 : before;
+    if (before > h->n_alloc) return -1;
+    add_rows(h, before);
     /* a short ring is moved as before (cheaper than the map's gathers and scatters) */
     if (n < h->rows || h->cap <= HIST_MAP_SLOTS) return permute_gather(h, perm, n);
     /* A re-sort of a long ring: only the row -> particle map changes; the ring (12 n d

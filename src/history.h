@@ -66,7 +66,7 @@ double history_error_bound(const stf_history *h);
  * levels). Returns the level in use (the highest the CPU has, at most `level`). */
 int history_simd(int level);
 /* Reorders particles: new index i takes old index perm[i] (n fewer than before: the others
- * are removed). */
+ * are removed). perm may name particles added since the last push (no samples yet). */
 int history_permute(stf_history *h, const int *perm, int n);
 /* The ring as a checkpoint stores it: cap slots of 3 n floats, slot s as the ring's slot s,
  * particles in their order (particles without a sample: zero). */

@@ -200,6 +200,10 @@ int main(int argc, char **argv)
     resume_case("window", clavet_scene, NULL, 0, 97, 200);
     stf_override full[] = {{"effects.history.mode", "full"}};
     resume_case("full", clavet_scene, full, 1, 131, 200); /* after the ring grew to 128+ */
+    /* a window of d >= 256: the ring's row map (re-sorts rename rows) and blocks of 32,
+       saved in the middle of one */
+    stf_override longw[] = {{"effects.history.d", "300"}};
+    resume_case("window_map", clavet_scene, longw, 1, 113, 200);
     stf_override soe[] = {{"effects.history.mode", "soe"}, {"effects.history.terms", "8"}};
     resume_case("soe", clavet_scene, soe, 2, 97, 200);
     resume_case("cy", cy_scene, NULL, 0, 60, 120);
