@@ -28,6 +28,11 @@ typedef struct stf_sim {
     dGeomID *geoms;         /* the space's geoms in their order after creation (checkpoints
                                name a geom by its index here) */
     int ngeoms;
+    /* the Carreau-Yasuda solver's statistics over all the fluid's substeps of the last
+       stf_sim_step (adaptive control may take several fluid steps, each its own CFL
+       substeps): substeps and the *_total/_sum fields summed, the *_max fields the largest,
+       the per-substep fields those of the last substep */
+    stf_solver_stats step_stats;
 } stf_sim;
 
 /* Builds the simulation. Returns 0; 2 with a message for a scene that cannot be built. */

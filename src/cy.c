@@ -1068,6 +1068,8 @@ int cy_step(stf_fluid *f, double dt)
     st->cfl_number = 0;
     st->pressure_iterations_total = 0;
     st->density_error_sum = st->density_error_max = 0;
+    st->pressure_iterations_max = st->viscosity_iterations_max = 0;
+    st->viscosity_iterations_total = 0;
     while (left > 1e-9 * dt) {
         double sub = left, vmax = stf_fluid_max_speed(f);
         if (cfl > 0) {
@@ -1087,6 +1089,11 @@ int cy_step(stf_fluid *f, double dt)
         double cn = vmax * sub / f->h;
         st->cfl_number = cn > st->cfl_number ? cn : st->cfl_number;
         st->pressure_iterations_total += st->pressure_iterations;
+        st->viscosity_iterations_total += st->viscosity_iterations;
+        if (st->pressure_iterations > st->pressure_iterations_max)
+            st->pressure_iterations_max = st->pressure_iterations;
+        if (st->viscosity_iterations > st->viscosity_iterations_max)
+            st->viscosity_iterations_max = st->viscosity_iterations;
         st->density_error_sum += st->density_error;
         st->density_error_max = st->density_error > st->density_error_max ? st->density_error
                                                                           : st->density_error_max;

@@ -100,6 +100,9 @@ typedef struct stf_solver_stats {
     long pressure_iterations_total; /* summed over the substeps */
     double density_error_sum; /* final mean density error summed over the substeps, fraction */
     double density_error_max; /* largest of them, fraction */
+    int pressure_iterations_max;    /* most iterations of a substep */
+    long viscosity_iterations_total; /* CG iterations summed over the substeps */
+    int viscosity_iterations_max;   /* most CG iterations of a substep */
 } stf_solver_stats;
 
 typedef struct stf_fluid_def {

@@ -62,6 +62,28 @@ static const char *const cy_scene =
     "  friction: 0.0\n"
     "  stick: false\n";
 
+/* periodic in x and y (a film down an incline), with the warm start and relaxation */
+static const char *const cy_periodic_scene =
+    "name: ckpt_cy_periodic\n"
+    "duration: 1\n"
+    "dt: 0.002\n"
+    "fluid:\n"
+    "  model: carreau_yasuda\n"
+    "  spacing: 0.01\n"
+    "  density: 1000\n"
+    "  blocks:\n"
+    "    - {min: [-0.04, -0.03, 0.0], max: [0.04, 0.03, 0.06]}\n"
+    "effects:\n"
+    "  gravity: {g: [3, 0.5, -9.3]}\n"
+    "  carreau_yasuda: {mu0: 0.01, mu_inf: 0.001, K: 1.0, alpha: 2, n: 1.5, eta: 0.01, "
+    "warm_start: 0.5, relaxation: 0.7}\n"
+    "container:\n"
+    "  size: [0.08, 0.06, 0.2]\n"
+    "  periodic: [x, y]\n"
+    "  wall: 0.02\n"
+    "  friction: 0.0\n"
+    "  stick: false\n";
+
 typedef struct snapshot {
     int n;
     double *x, *v;
@@ -207,6 +229,14 @@ int main(int argc, char **argv)
     stf_override soe[] = {{"effects.history.mode", "soe"}, {"effects.history.terms", "8"}};
     resume_case("soe", clavet_scene, soe, 2, 97, 200);
     resume_case("cy", cy_scene, NULL, 0, 60, 120);
+    /* CFL substeps (with dt_max), the warm start across them, and the explicit viscosity */
+    stf_override cfl[] = {{"effects.carreau_yasuda.cfl", "0.3"},
+                          {"effects.carreau_yasuda.dt_max", "0.001"},
+                          {"effects.carreau_yasuda.relaxation", "0.6"}};
+    resume_case("cy_cfl", cy_scene, cfl, 3, 37, 90);
+    stf_override expl[] = {{"effects.carreau_yasuda.viscosity_solver", "explicit"}};
+    resume_case("cy_explicit", cy_scene, expl, 1, 41, 80);
+    resume_case("cy_periodic", cy_periodic_scene, NULL, 0, 53, 120);
     refuses_other_scene();
     return test_result("test_checkpoint");
 }

@@ -1074,8 +1074,7 @@ static int dam_row(const bench_args *a, double duration, int threads)
     double t0 = omp_get_wtime(), c0 = cpu_seconds();
     for (long s = 0; s < steps && rc == 0; s++) {
         rc = stf_sim_step(sim);
-        stf_solver_stats st;
-        stf_fluid_solver_stats(sim->fluid, &st);
+        stf_solver_stats st = sim->step_stats; /* all the fluid steps of the step */
         substeps += st.substeps;
         iters += st.pressure_iterations_total;
         err_sum += st.density_error_sum;

@@ -252,25 +252,30 @@ typedef struct run_progress {
     solver_sums sums;
 } run_progress;
 
+/* Over every fluid substep of the step (adaptive control and the CFL split may take several:
+ * the largest and the sums of all of them, not only the last one's); the means are per
+ * substep. */
 static void add_solver_stats(const stf_sim *sim, solver_sums *u)
 {
-    stf_solver_stats st;
-    stf_fluid_solver_stats(sim->fluid, &st);
-    u->fr_it_max = st.pressure_iterations > u->fr_it_max ? st.pressure_iterations : u->fr_it_max;
-    u->fr_err_max = st.density_error > u->fr_err_max ? st.density_error : u->fr_err_max;
-    u->fr_cg_max = st.viscosity_iterations > u->fr_cg_max ? st.viscosity_iterations : u->fr_cg_max;
-    u->fr_it_sum += st.pressure_iterations, u->fr_cg_sum += st.viscosity_iterations, u->fr_n++;
-    u->run_it_sum += st.pressure_iterations, u->run_cg_sum += st.viscosity_iterations;
+    const stf_solver_stats *st = &sim->step_stats;
+    double it = (double)st->pressure_iterations_total, cg = (double)st->viscosity_iterations_total;
+    u->fr_it_max = st->pressure_iterations_max > u->fr_it_max ? st->pressure_iterations_max : u->fr_it_max;
+    u->fr_err_max = st->density_error_max > u->fr_err_max ? st->density_error_max : u->fr_err_max;
+    u->fr_cg_max = st->viscosity_iterations_max > u->fr_cg_max ? st->viscosity_iterations_max : u->fr_cg_max;
+    u->fr_it_sum += it, u->fr_cg_sum += cg, u->fr_n += st->substeps;
+    u->run_it_sum += it, u->run_cg_sum += cg;
 }
 
 static void frame_solver_stats(stf_h5 *h, solver_sums *u)
 {
     if (u->fr_n <= 0) return;
-    stf_h5_frame_attr_double(h, "pressure_iterations_max", u->fr_it_max);
-    stf_h5_frame_attr_double(h, "pressure_iterations_mean", u->fr_it_sum / u->fr_n);
-    stf_h5_frame_attr_double(h, "density_error_max", u->fr_err_max);
-    stf_h5_frame_attr_double(h, "viscosity_iterations_max", u->fr_cg_max);
-    stf_h5_frame_attr_double(h, "viscosity_iterations_mean", u->fr_cg_sum / u->fr_n);
+    if (h) {
+        stf_h5_frame_attr_double(h, "pressure_iterations_max", u->fr_it_max);
+        stf_h5_frame_attr_double(h, "pressure_iterations_mean", u->fr_it_sum / u->fr_n);
+        stf_h5_frame_attr_double(h, "density_error_max", u->fr_err_max);
+        stf_h5_frame_attr_double(h, "viscosity_iterations_max", u->fr_cg_max);
+        stf_h5_frame_attr_double(h, "viscosity_iterations_mean", u->fr_cg_sum / u->fr_n);
+    }
     u->run_it_max = u->fr_it_max > u->run_it_max ? u->fr_it_max : u->run_it_max;
     u->run_err_max = u->fr_err_max > u->run_err_max ? u->fr_err_max : u->run_err_max;
     u->run_cg_max = u->fr_cg_max > u->run_cg_max ? u->fr_cg_max : u->run_cg_max;
@@ -430,16 +435,18 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
     stf_h5_attr_double(h, "dt_max", sim->dt_max > 0 ? sim->dt_max : sc->dt);
     stf_h5_attr_string(h, "dt_control", sc->dt_fixed ? "fixed" : "adaptive");
     if (cy && sim->steps > 0) {
+        frame_solver_stats(NULL, u); /* steps after the last frame (a numerical failure) */
+        double subs = (double)sim->substeps; /* the means are per substep */
         stf_h5_attr_double(h, "pressure_iterations_max", u->run_it_max);
-        stf_h5_attr_double(h, "pressure_iterations_mean", u->run_it_sum / (double)sim->steps);
+        stf_h5_attr_double(h, "pressure_iterations_mean", u->run_it_sum / subs);
         stf_h5_attr_double(h, "density_error_max", u->run_err_max);
         stf_h5_attr_double(h, "viscosity_iterations_max", u->run_cg_max);
-        stf_h5_attr_double(h, "viscosity_iterations_mean", u->run_cg_sum / (double)sim->steps);
+        stf_h5_attr_double(h, "viscosity_iterations_mean", u->run_cg_sum / subs);
         if (!a->quiet)
             fprintf(stderr, "stf: carreau_yasuda: pressure iterations mean %.2f max %.0f, mean "
                     "density error max %.3g%% (eta %g%%), viscosity CG iterations mean %.1f max %.0f\n",
-                    u->run_it_sum / (double)sim->steps, u->run_it_max, 100 * u->run_err_max,
-                    100 * sc->fluid.cy.eta, u->run_cg_sum / (double)sim->steps, u->run_cg_max);
+                    u->run_it_sum / subs, u->run_it_max, 100 * u->run_err_max,
+                    100 * sc->fluid.cy.eta, u->run_cg_sum / subs, u->run_cg_max);
     }
     if (status == 2) fprintf(stderr, "stf: writing %s failed: %s\n", out, stf_h5_last_error(h));
     stf_h5_flush_for_reading(h);
