@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "stf_ode.h"
 #include "test_util.h"
 #include "stf.h"
 
@@ -100,6 +101,120 @@ static void test_threads(void)
           (unsigned long long)h2);
 }
 
+/* Periodic in x and y, a floor, the warm start with relaxation, CFL substeps, and an
+ * obstacle: the same state bit for bit with 1, 2 and 3 threads (3 splits the particles
+ * unevenly). */
+static uint64_t periodic_flow_hash(int threads, int solver)
+{
+    stf_set_threads(threads);
+    stf_fluid_def d = stf_default_fluid_def();
+    d.model = STF_MODEL_CARREAU_YASUDA;
+    d.effects = STF_EFFECT_GRAVITY;
+    d.spacing = 0.02, d.density = 1000, d.jitter = 0.2;
+    d.gravity[0] = 3, d.gravity[1] = 1, d.gravity[2] = -9.3;
+    d.cy.mu0 = 0.2, d.cy.mu_inf = 0.001, d.cy.K = 5, d.cy.n = 0.5;
+    d.cy.warm_start = 0.5, d.cy.relaxation = 0.7, d.cy.cfl = 0.3;
+    d.cy.viscosity_solver = solver;
+    d.periodic[0] = 0.14, d.periodic[1] = 0.12;
+    d.periodic_origin[0] = -0.07, d.periodic_origin[1] = -0.06;
+    stf_fluid *f = make(&d);
+    if (!f) return 0;
+    stf_collider_def c = stf_default_collider_def();
+    c.shape = STF_SHAPE_BOX;
+    c.half[0] = 0.5, c.half[1] = 0.5, c.half[2] = 0.05;
+    char err[256];
+    int id = stf_fluid_add_collider(f, &c, err, sizeof err);
+    CHECK(id >= 0, "%s", err);
+    double rot[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1}, z[3] = {0, 0, 0}, p[3] = {0, 0, -0.05};
+    stf_fluid_set_collider_state(f, id, p, rot, z, z);
+    stf_collider_def s = stf_default_collider_def();
+    s.shape = STF_SHAPE_SPHERE;
+    s.radius = 0.025;
+    int ids = stf_fluid_add_collider(f, &s, err, sizeof err);
+    CHECK(ids >= 0, "%s", err);
+    double ps[3] = {0.0, 0.0, 0.03};
+    stf_fluid_set_collider_state(f, ids, ps, rot, z, z);
+    stf_fluid_add_block(f, (double[3]){-0.07, -0.06, 0.0}, (double[3]){0.07, 0.06, 0.08},
+                        (double[3]){0.5, 0, 0});
+    for (int k = 0; k < 30; k++) CHECK(stf_fluid_step(f, 4e-3) == 0, "step %d: %s", k, stf_fluid_failure(f));
+    stf_solver_stats st;
+    stf_fluid_solver_stats(f, &st);
+    CHECK(st.substeps >= 1, "substeps %d", st.substeps);
+    uint64_t h = stf_fluid_hash(f);
+    stf_fluid_destroy(f);
+    return h;
+}
+
+static void test_threads_periodic(void)
+{
+    for (int solver = 0; solver < 2; solver++) {
+        int sv = solver ? STF_VISCOSITY_EXPLICIT : STF_VISCOSITY_IMPLICIT;
+        uint64_t h1 = periodic_flow_hash(1, sv), h2 = periodic_flow_hash(2, sv),
+                 h3 = periodic_flow_hash(3, sv);
+        CHECK(h1 == h2 && h1 == h3 && h1 != 0, "periodic (%s): 1, 2, 3 threads differ: %llx %llx %llx",
+              solver ? "explicit" : "implicit", (unsigned long long)h1, (unsigned long long)h2,
+              (unsigned long long)h3);
+    }
+    stf_set_threads(1);
+}
+
+/* Gravity off, no container: an ODE ball shot into a blob of viscous fluid. Whatever the
+ * fluid takes, the ball gives (pressure, viscous and collision impulses go back to it), with
+ * either viscosity solver. */
+static void momentum_case(int solver, double mu0, double cg_tol)
+{
+    dWorldID w = dWorldCreate();
+    dSpaceID sp = dHashSpaceCreate(0);
+    dWorldSetGravity(w, 0, 0, 0);
+    stf_fluid_def d = stf_default_fluid_def();
+    d.model = STF_MODEL_CARREAU_YASUDA;
+    d.effects = 0;
+    d.spacing = 0.01, d.density = 1000, d.jitter = 0.2;
+    d.cy.mu0 = mu0, d.cy.mu_inf = 0.1 * mu0, d.cy.K = 1, d.cy.n = 1.5;
+    d.cy.viscosity_solver = solver;
+    d.cy.cg_tolerance = cg_tol;
+    stf_fluid *f = make(&d);
+    if (!f) return;
+    stf_fluid_add_block(f, (double[3]){-0.04, -0.04, -0.04}, (double[3]){0.04, 0.04, 0.04},
+                        (double[3]){0, 0, 0});
+    dBodyID ball = dBodyCreate(w);
+    dMass m;
+    dMassSetSphereTotal(&m, 0.3, 0.02);
+    dBodySetMass(ball, &m);
+    dBodySetPosition(ball, -0.07, 0.003, 0.002);
+    dGeomSetBody(dCreateSphere(sp, 0.02), ball);
+    dBodySetLinearVel(ball, 1.0, 0, 0);
+    stf_ode *c = stf_ode_create(w, sp, f);
+    char err[256];
+    CHECK(stf_ode_attach_body(c, ball, NULL, err, sizeof err) == 0, "%s", err);
+    int n = stf_fluid_count(f);
+    double *v = malloc((size_t)n * 3 * sizeof *v), p0[3] = {0.3, 0, 0}, p1[3] = {0, 0, 0};
+    for (int k = 0; k < 40; k++) CHECK(stf_ode_step(c, 1e-3) == 0, "step %d", k);
+    stf_fluid_get_velocities(f, v);
+    for (int i = 0; i < n; i++)
+        for (int a = 0; a < 3; a++) p1[a] += stf_fluid_particle_mass(f) * v[3 * i + a];
+    const dReal *bv = dBodyGetLinearVel(ball);
+    double moved = 0.3 - 0.3 * bv[0], e2 = 0;
+    for (int a = 0; a < 3; a++) p1[a] += 0.3 * bv[a], e2 += (p1[a] - p0[a]) * (p1[a] - p0[a]);
+    printf("cy momentum (%s): ball gave %.4g N s; total changed by %.3g N s\n",
+           solver == STF_VISCOSITY_EXPLICIT ? "explicit" : "implicit", moved, sqrt(e2));
+    CHECK(moved > 0.01, "the ball hardly touched the fluid (%g N s)", moved);
+    CHECK(sqrt(e2) < 1e-9 * 0.3, "%s: total momentum changed by %g N s",
+          solver == STF_VISCOSITY_EXPLICIT ? "explicit" : "implicit", sqrt(e2));
+    free(v);
+    stf_ode_destroy(c);
+    stf_fluid_destroy(f);
+    dSpaceDestroy(sp);
+    dWorldDestroy(w);
+}
+
+static void test_momentum(void)
+{
+    momentum_case(STF_VISCOSITY_IMPLICIT, 0.05, 1e-4);
+    momentum_case(STF_VISCOSITY_IMPLICIT, 0.05, 1e-12);
+    momentum_case(STF_VISCOSITY_EXPLICIT, 0.002, 1e-4);
+}
+
 static void test_bad_defs(void)
 {
     stf_fluid_def d = stf_default_fluid_def();
@@ -160,5 +275,9 @@ int main(void)
     test_bad_defs();
     test_scene_keys();
     test_threads();
+    test_threads_periodic();
+    dInitODE2(0);
+    test_momentum();
+    dCloseODE();
     return test_result("test_cy");
 }
