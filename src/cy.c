@@ -1180,7 +1180,9 @@ int cy_load_state(stf_fluid *f, const stf_state *s, char *err, size_t errlen)
         stf_state_get_i64(s, "cy.n", &n, err, errlen))
         return -1;
     if ((n != 0 && n != f->n) || (warm_n != 0 && warm_n != f->n)) {
-        snprintf(err, errlen, "checkpoint: cy.n %ld does not match %d particles", (long)n, f->n);
+        snprintf(err, errlen, "checkpoint: %s %ld does not match %d particles",
+                 n != 0 && n != f->n ? "cy.n" : "cy.warm_n",
+                 (long)(n != 0 && n != f->n ? n : warm_n), f->n);
         return -1;
     }
     c->warm_n = (int)warm_n;
@@ -1189,7 +1191,15 @@ int cy_load_state(stf_fluid *f, const stf_state *s, char *err, size_t errlen)
         snprintf(err, errlen, "checkpoint: out of memory");
         return -1;
     }
-    return stf_state_get(s, "cy.ktot", STF_STATE_F64, (size_t)n, c->ktot, err, errlen) ||
-                   stf_state_get(s, "cy.rho", STF_STATE_F64, (size_t)n, c->rho, err, errlen)
-               ? -1 : 0;
+    if (stf_state_get(s, "cy.ktot", STF_STATE_F64, (size_t)n, c->ktot, err, errlen) ||
+        stf_state_get(s, "cy.rho", STF_STATE_F64, (size_t)n, c->rho, err, errlen))
+        return -1;
+    /* a damaged file: pressures (sums of k_i >= 0) and densities as a step leaves them */
+    for (int i = 0; i < (int)n; i++)
+        if (!(c->ktot[i] >= 0 && isfinite(c->ktot[i])) || !(c->rho[i] > 0 && isfinite(c->rho[i]))) {
+            snprintf(err, errlen, "checkpoint: %s[%d] is out of range",
+                     !(c->ktot[i] >= 0 && isfinite(c->ktot[i])) ? "cy.ktot" : "cy.rho", i);
+            return -1;
+        }
+    return 0;
 }

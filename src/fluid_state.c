@@ -11,6 +11,7 @@
 #include "cy.h"
 #include "fluid.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -226,6 +227,16 @@ int stf_fluid_load_state(stf_fluid *f, const stf_state *s, char *err, size_t err
             snprintf(err, errlen, "checkpoint: particle id out of range");
             return -1;
         }
+    /* a damaged file: a step saved is a good step, so its state is finite (resumed, it would
+       end as a numerical failure, which is not resumable) */
+    const char *vec[3] = {"fluid.x", "fluid.v", "fluid.xprev"};
+    const double *arr[3] = {f->x, f->v, f->xprev};
+    for (int k = 0; k < 3; k++)
+        for (size_t i = 0; i < 3 * N; i++)
+            if (!isfinite(arr[k][i])) {
+                snprintf(err, errlen, "checkpoint: %s[%zu] is not finite", vec[k], i);
+                return -1;
+            }
     grid_invalidate(&f->grid);
     if (valid) {
         double href, skin_used;

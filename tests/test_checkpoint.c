@@ -4,6 +4,7 @@
  * window, full and sum-of-exponentials histories with springs, a ball, a box and a vibrating
  * container (random frequency jumps), adaptive substeps, and the Carreau-Yasuda model with
  * its warm start. A checkpoint does not load into another scene. */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -216,6 +217,44 @@ static void refuses_other_scene(void)
     stf_scene_free(sa), stf_scene_free(sb);
 }
 
+/* A damaged checkpoint (a non-finite position, velocity or warm-start pressure, a warm-start
+ * count that is not the particles') is refused by the load, naming the entry: resumed, it
+ * would only fail as a numerical failure (exit 3), which ends the run for good. */
+static void refuses_damaged(void)
+{
+    static const struct {
+        const char *entry;
+        int type; /* 0: poison a double with NaN, 1: set an i64 to 7 */
+    } cases[] = {{"fluid.x", 0}, {"fluid.v", 0}, {"fluid.xprev", 0}, {"cy.ktot", 0}, {"cy.rho", 0},
+                 {"cy.warm_n", 1}};
+    for (size_t k = 0; k < sizeof cases / sizeof *cases; k++) {
+        stf_scene *sa = NULL, *sb = NULL;
+        stf_sim *a = build(cy_scene, NULL, 0, &sa), *b = build(cy_scene, NULL, 0, &sb);
+        if (a && b) {
+            CHECK(run(a, 5) == 0, "steps failed");
+            stf_state st = {0};
+            through_file(a, "ckpt_damaged.h5", &st);
+            unlink("ckpt_damaged.h5");
+            const stf_state_entry *e = NULL;
+            for (int i = 0; i < st.n; i++)
+                if (!strcmp(st.e[i].name, cases[k].entry)) e = &st.e[i];
+            CHECK(e && e->owned, "%s: not in the checkpoint", cases[k].entry);
+            if (e && e->owned) {
+                if (cases[k].type == 0) ((double *)e->owned)[e->count / 2] = NAN;
+                else *(int64_t *)e->owned = 7;
+                char err[512] = "";
+                CHECK(stf_sim_load_state(b, &st, err, sizeof err) != 0, "%s damaged: loaded",
+                      cases[k].entry);
+                CHECK(strstr(err, cases[k].entry) != NULL, "%s damaged: message '%s'",
+                      cases[k].entry, err);
+            }
+            stf_state_free(&st);
+        }
+        stf_sim_destroy(a), stf_sim_destroy(b);
+        stf_scene_free(sa), stf_scene_free(sb);
+    }
+}
+
 int main(int argc, char **argv)
 {
     only = argc > 1 ? argv[1] : NULL;
@@ -238,5 +277,6 @@ int main(int argc, char **argv)
     resume_case("cy_explicit", cy_scene, expl, 1, 41, 80);
     resume_case("cy_periodic", cy_periodic_scene, NULL, 0, 53, 120);
     refuses_other_scene();
+    if (!only) refuses_damaged();
     return test_result("test_checkpoint");
 }
