@@ -70,7 +70,7 @@ static void test_block_at_rest(void)
 
 /* A block falling into a container: the same state bit for bit with 1 and 2 threads (every
  * loop gathers per particle; the sums over particles are serial). */
-static uint64_t falling_block_hash(int threads)
+static uint64_t falling_block_hash_far(int threads, int far)
 {
     stf_set_threads(threads);
     stf_fluid_def d = stf_default_fluid_def();
@@ -88,6 +88,9 @@ static uint64_t falling_block_hash(int threads)
     double rot[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1}, z[3] = {0, 0, 0};
     stf_fluid_set_collider_state(f, id, z, rot, z, z);
     stf_fluid_add_block(f, (double[3]){-0.1, -0.1, 0.05}, (double[3]){0.0, 0.1, 0.15}, z);
+    /* a few particles 30 m away: the dense neighbour box would be too large, and the shared
+       hashed grid (Verlet lists, re-sorts) is used instead */
+    if (far) stf_fluid_add_block(f, (double[3]){30, 30, 30}, (double[3]){30.04, 30.04, 30.04}, z);
     for (int k = 0; k < 40; k++) CHECK(stf_fluid_step(f, 1e-3) == 0, "step %d", k);
     uint64_t h = stf_fluid_hash(f);
     stf_fluid_destroy(f);
@@ -96,9 +99,14 @@ static uint64_t falling_block_hash(int threads)
 
 static void test_threads(void)
 {
-    uint64_t h1 = falling_block_hash(1), h2 = falling_block_hash(2);
-    CHECK(h1 == h2 && h1 != 0, "1 and 2 threads differ: %llx vs %llx", (unsigned long long)h1,
-          (unsigned long long)h2);
+    for (int far = 0; far < 2; far++) {
+        uint64_t h1 = falling_block_hash_far(1, far), h2 = falling_block_hash_far(2, far),
+                 h3 = falling_block_hash_far(3, far);
+        CHECK(h1 == h2 && h1 == h3 && h1 != 0, "%s: 1, 2 and 3 threads differ: %llx %llx %llx",
+              far ? "shared grid" : "dense lists", (unsigned long long)h1,
+              (unsigned long long)h2, (unsigned long long)h3);
+    }
+    stf_set_threads(1);
 }
 
 /* Periodic in x and y, a floor, the warm start with relaxation, CFL substeps, and an
