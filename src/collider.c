@@ -90,7 +90,9 @@ static double sdf_container(const double p[3], const double half[3], double wall
         return 1e30;
     }
     double q[3] = {fabs(p[0]) - hx, fabs(p[1]) - hy, -p[2]};
-    if (q[0] < 0 && q[1] < 0 && q[2] < 0) { /* inside: the nearest wall or the floor */
+    /* inside or on the inner surface (<=: on it the way back below has length 0, and -p[2]
+       is -0.0 on the floor), the nearest wall or the floor */
+    if (q[0] <= 0 && q[1] <= 0 && q[2] <= 0) {
         double d = -q[0];
         n[0] = p[0] < 0 ? 1 : -1, n[1] = 0, n[2] = 0;
         if (-q[1] < d) d = -q[1], n[0] = 0, n[1] = p[1] < 0 ? 1 : -1, n[2] = 0;

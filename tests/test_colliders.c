@@ -155,9 +155,43 @@ static void test_remove_inside(void)
     stf_fluid_destroy(f);
 }
 
+/* One particle at rest exactly on a solid's surface (a face, an edge, a corner, or the floor
+ * at z = 0, where -z is -0.0) stays finite and is pushed out to at least half a spacing: in
+ * one step from a face, in three from a corner (one face per step). */
+static void on_surface(const char *what, stf_collider_def c, const double x[3], double want_d,
+                       int steps)
+{
+    stf_fluid *f = fluid();
+    int id = add(f, c);
+    stf_fluid_set_collider_state(f, id, (double[3]){0, 0, 0}, NULL, (double[3]){0, 0, 0},
+                                 (double[3]){0, 0, 0});
+    stf_fluid_add_particle(f, x, (double[3]){0, 0, 0});
+    int rc = 0;
+    for (int k = 0; k < steps && rc == 0; k++) rc = stf_fluid_step(f, 1e-3);
+    CHECK(rc == 0, "%s: %s", what, stf_fluid_failure(f));
+    double y[3];
+    stf_fluid_get_positions(f, y);
+    double d = stf_fluid_collider_distance(f, id, y);
+    printf("on surface, %s: distance after %d step(s) %.3g m\n", what, steps, d);
+    CHECK(isfinite(d) && d >= want_d - 1e-12 && d < 2 * want_d,
+          "%s: distance %g after the step, want %g (or a bit more)", what, d, want_d);
+    stf_fluid_destroy(f);
+}
+
+static void test_on_surface(void)
+{
+    const double rp = 0.005; /* half the spacing */
+    stf_collider_def c = stf_default_collider_def();
+    c.shape = STF_SHAPE_CONTAINER, c.half[0] = 0.05, c.half[1] = 0.05, c.half[2] = 0.1, c.wall = 0.02;
+    on_surface("container wall", c, (double[3]){0.05, 0.01, 0.05}, rp, 1);
+    on_surface("container floor", c, (double[3]){0.01, 0.02, 0}, rp, 1);
+    on_surface("container corner", c, (double[3]){-0.05, 0.05, 0}, rp, 3);
+}
+
 int main(void)
 {
     test_shapes();
+    test_on_surface();
     test_convex();
     test_remove_inside();
     return test_result("test_colliders");
