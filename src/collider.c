@@ -172,6 +172,16 @@ static double sdf_convex(const collider *c, const double x[3], double n[3])
     }
     /* dir: the direction to move the point to separate it, i.e. out of the hull. */
     n[0] = ccdVec3X(&dir), n[1] = ccdVec3Y(&dir), n[2] = ccdVec3Z(&dir);
+    double len = norm3(n);
+    if (!(len > 0.5 && len < 2) || !(depth > 1e-12 * c->bound)) {
+        /* A point on the surface (depth 0): EPA has no direction, and gives NaN at a corner
+           or a tangent at a face. Out along the line from the hull's origin instead. */
+        double r[3] = {x[0] - c->pos[0], x[1] - c->pos[1], x[2] - c->pos[2]};
+        double l = norm3(r);
+        if (l > 0) n[0] = r[0] / l, n[1] = r[1] / l, n[2] = r[2] / l;
+        else n[0] = n[1] = 0, n[2] = 1;
+        return isfinite(depth) ? -depth : 0.0;
+    }
     return -depth;
 }
 
