@@ -150,6 +150,110 @@ static void center_point(const void *obj, ccd_vec3_t *center)
     ccdVec3Set(center, x[0], x[1], x[2]);
 }
 
+/* The point of the affine hull of the m points s (m <= 4) nearest the origin, as weights
+ * lam (summing to 1): the Gram system [G 1; 1' 0]. Returns -1 when it is singular. */
+static int affine_nearest(const double (*s)[3], int m, double lam[4])
+{
+    double A[5][6];
+    for (int i = 0; i < m; i++) {
+        for (int j = 0; j < m; j++)
+            A[i][j] = s[i][0] * s[j][0] + s[i][1] * s[j][1] + s[i][2] * s[j][2];
+        A[i][m] = 1, A[i][m + 1] = 0;
+    }
+    for (int j = 0; j < m; j++) A[m][j] = 1;
+    A[m][m] = 0, A[m][m + 1] = 1;
+    int N = m + 1;
+    double scale = 0;
+    for (int i = 0; i < m; i++) scale = fmax(scale, A[i][i]);
+    for (int col = 0; col < N; col++) { /* Gauss-Jordan, partial pivoting */
+        int piv = col;
+        for (int r = col + 1; r < N; r++)
+            if (fabs(A[r][col]) > fabs(A[piv][col])) piv = r;
+        if (!(fabs(A[piv][col]) > 1e-13 * (scale > 1 ? scale : 1) * (col < m ? 1 : 1e-3)))
+            return -1;
+        for (int k = 0; k <= N; k++) {
+            double t = A[col][k];
+            A[col][k] = A[piv][k], A[piv][k] = t;
+        }
+        for (int r = 0; r < N; r++) {
+            if (r == col) continue;
+            double fct = A[r][col] / A[col][col];
+            for (int k = col; k <= N; k++) A[r][k] -= fct * A[col][k];
+        }
+    }
+    for (int i = 0; i < m; i++) lam[i] = A[i][N] / A[i][i];
+    return 0;
+}
+
+/* Distance from the local point p to the hull of the body-frame points when p is outside
+ * (GJK on the points moved by -p: the hull point nearest the origin). Sets the outward unit
+ * normal nl (local); returns the distance, 0 when p is inside or on the hull. */
+static double hull_distance(const collider *c, const double p[3], double nl[3])
+{
+    const double *P = c->points;
+    int np = c->def.npoints;
+    double W[4][3], v[3];
+    int m = 1;
+    for (int a = 0; a < 3; a++) W[0][a] = P[a] - p[a], v[a] = W[0][a];
+    double tol = 1e-24 * (c->bound * c->bound + 1e-30);
+    int inside = 0;
+    for (int it = 0; it < 64; it++) {
+        double vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+        if (vv <= tol) { /* the origin is on the hull: touching */
+            inside = 1;
+            break;
+        }
+        int best = 0;
+        double bd = 1e300;
+        for (int k = 0; k < np; k++) {
+            double d = (P[3 * k] - p[0]) * v[0] + (P[3 * k + 1] - p[1]) * v[1] +
+                       (P[3 * k + 2] - p[2]) * v[2];
+            if (d < bd) bd = d, best = k;
+        }
+        if (vv - bd <= 1e-12 * vv) break; /* no point nearer along -v: v is it */
+        for (int a = 0; a < 3; a++) W[m][a] = P[3 * best + a] - p[a];
+        m++;
+        /* the sub-simplex holding the nearest point: try every subset, keep the nearest
+           one whose weights are all positive */
+        double bestn = 1e300, bv[3] = {v[0], v[1], v[2]}, bw[4][3];
+        int bm = 0;
+        for (int mask = 1; mask < (1 << m); mask++) {
+            double S[4][3], lam[4];
+            int k = 0;
+            for (int i = 0; i < m; i++)
+                if (mask >> i & 1) S[k][0] = W[i][0], S[k][1] = W[i][1], S[k][2] = W[i][2], k++;
+            if (affine_nearest((const double (*)[3])S, k, lam) != 0) continue;
+            int ok = 1;
+            for (int i = 0; i < k; i++) ok &= lam[i] > 0;
+            if (!ok) continue;
+            double q[3] = {0, 0, 0};
+            for (int i = 0; i < k; i++)
+                for (int a = 0; a < 3; a++) q[a] += lam[i] * S[i][a];
+            double qq = q[0] * q[0] + q[1] * q[1] + q[2] * q[2];
+            if (qq < bestn) {
+                bestn = qq, bm = k;
+                for (int a = 0; a < 3; a++) bv[a] = q[a];
+                for (int i = 0; i < k; i++) bw[i][0] = S[i][0], bw[i][1] = S[i][1], bw[i][2] = S[i][2];
+            }
+        }
+        if (bm == 0 || !(bestn < vv)) break; /* no progress: v is as near as it gets */
+        m = bm;
+        for (int i = 0; i < m; i++) W[i][0] = bw[i][0], W[i][1] = bw[i][1], W[i][2] = bw[i][2];
+        for (int a = 0; a < 3; a++) v[a] = bv[a];
+        if (m == 4) { /* a tetrahedron around the origin: inside */
+            inside = 1;
+            break;
+        }
+    }
+    double len = norm3(v);
+    if (inside || !(len > 0)) {
+        nl[0] = nl[1] = 0, nl[2] = 1;
+        return 0;
+    }
+    for (int a = 0; a < 3; a++) nl[a] = -v[a] / len;
+    return len;
+}
+
 static double sdf_convex(const collider *c, const double x[3], double n[3])
 {
     ccd_t ccd;
@@ -167,8 +271,13 @@ static double sdf_convex(const collider *c, const double x[3], double n[3])
        point, which overestimates it away from the face normals (by up to 11 cm for a
        40 x 20 x 10 cm box, tested); EPA finds the shortest way out. */
     if (ccdGJKPenetration(&h, x, &ccd, &depth, &dir, &pos) != 0) {
-        n[0] = n[1] = 0, n[2] = 1; /* no contact: only contacts matter here */
-        return 1e30;
+        /* outside: the distance (collisions act within half a spacing, wall pressure
+           within h), by GJK on the hull's points */
+        double p[3], nl[3];
+        to_local(c, x, p);
+        double d = hull_distance(c, p, nl);
+        to_world_dir(c, nl, n);
+        return d;
     }
     /* dir: the direction to move the point to separate it, i.e. out of the hull. */
     n[0] = ccdVec3X(&dir), n[1] = ccdVec3Y(&dir), n[2] = ccdVec3Z(&dir);

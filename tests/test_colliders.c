@@ -83,7 +83,8 @@ static void test_shapes(void)
     stf_fluid_destroy(f);
 }
 
-/* The convex hull of a box's corners (libccd GJK+EPA) gives the box's penetration depth. */
+/* The convex hull of a box's corners (libccd GJK+EPA) gives the box's penetration depth, and
+ * its distance outside. */
 static void test_convex(void)
 {
     stf_fluid *f = fluid();
@@ -103,21 +104,27 @@ static void test_convex(void)
     rot_z(0.7, R);
     stf_fluid_set_collider_state(f, hull, pos, R, v0, v0);
     stf_fluid_set_collider_state(f, box, pos, R, v0, v0);
-    double worst = 0;
+    double worst = 0, worst_out = 0;
     unsigned s = 7;
-    for (int k = 0; k < 200; k++) {
+    int nout = 0;
+    for (int k = 0; k < 400; k++) {
         double x[3];
         for (int a = 0; a < 3; a++) {
             s = s * 1664525u + 1013904223u;
-            x[a] = pos[a] + 0.18 * ((s >> 8) / 16777216.0 - 0.5);
+            x[a] = pos[a] + (k < 200 ? 0.18 : 0.6) * ((s >> 8) / 16777216.0 - 0.5);
         }
         double db = stf_fluid_collider_distance(f, box, x);
-        if (db >= 0) continue; /* only penetration is reported */
         double dh = stf_fluid_collider_distance(f, hull, x);
-        worst = fmax(worst, fabs(dh - db));
+        if (db < 0) worst = fmax(worst, fabs(dh - db));
+        /* outside: the distance too, within the reach of collisions and wall pressure (h),
+           as for every other shape */
+        else if (db < 0.05) worst_out = fmax(worst_out, fabs(dh - db)), nout++;
     }
-    printf("convex vs box: worst depth difference %.3g m\n", worst);
+    printf("convex vs box: worst depth difference %.3g m; outside (%d points within 5 cm) "
+           "%.3g m\n", worst, nout, worst_out);
     CHECK(worst < 1e-6, "EPA depth differs from the box by %g m", worst);
+    CHECK(nout > 20 && worst_out < 1e-9, "the hull's distance outside differs from the box's by %g m",
+          worst_out);
     stf_fluid_destroy(f);
 }
 
