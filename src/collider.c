@@ -83,11 +83,13 @@ static double sdf_cylinder(const double p[3], double r, double hl, double n[3])
 static double sdf_container(const double p[3], const double half[3], double wall, double n[3])
 {
     double hx = half[0], hy = half[1], top = 2.0 * half[2];
-    int in_shell = fabs(p[0]) <= hx + wall && fabs(p[1]) <= hy + wall && p[2] >= -wall &&
-                   p[2] <= top;
-    if (!in_shell) { /* outside the container: far from every inner wall */
+    int over = fabs(p[0]) <= hx + wall && fabs(p[1]) <= hy + wall; /* the footprint */
+    int in_wall_column = fabs(p[0]) > hx || fabs(p[1]) > hy;
+    int in_shell = over && p[2] >= -wall && p[2] <= top;
+    if (!in_shell) { /* outside the container: far from every inner wall... */
         n[0] = n[1] = 0, n[2] = 1;
-        return 1e30;
+        /* ...but over a wall's rim: its top face */
+        return over && in_wall_column && p[2] > top ? p[2] - top : 1e30;
     }
     double q[3] = {fabs(p[0]) - hx, fabs(p[1]) - hy, -p[2]};
     /* inside or on the inner surface (<=: on it the way back below has length 0, and -p[2]
@@ -99,9 +101,14 @@ static double sdf_container(const double p[3], const double half[3], double wall
         if (-q[2] < d) d = -q[2], n[0] = 0, n[1] = 0, n[2] = 1;
         return d;
     }
-    /* In the walls or floor: back to the inner box by the shortest way. */
+    /* In the walls or floor: back to the inner box by the shortest way, or up through the
+       rim when that is shorter (a particle landing on a wall's top). */
     double out[3] = {q[0] > 0 ? q[0] : 0, q[1] > 0 ? q[1] : 0, q[2] > 0 ? q[2] : 0};
     double o = norm3(out);
+    if (in_wall_column && top - p[2] < o) {
+        n[0] = n[1] = 0, n[2] = 1;
+        return p[2] - top;
+    }
     n[0] = p[0] < 0 ? out[0] / o : -out[0] / o;
     n[1] = p[1] < 0 ? out[1] / o : -out[1] / o;
     n[2] = out[2] / o;

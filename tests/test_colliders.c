@@ -231,10 +231,40 @@ static void test_convex_on_surface(void)
     stf_fluid_destroy(f);
 }
 
+/* A wall's rim is solid too: a particle falling on the top of a 2 cm container wall rests
+ * on it (half a spacing above), it is not moved sideways into the container. */
+static void test_rim(void)
+{
+    stf_fluid_def d = stf_default_fluid_def();
+    d.jitter = 0;
+    d.effects = STF_EFFECT_PRESSURE | STF_EFFECT_GRAVITY;
+    d.spacing = 0.01;
+    char err[256];
+    stf_fluid *f;
+    if (stf_fluid_create(&d, &f, err, sizeof err)) exit(1);
+    stf_collider_def c = stf_default_collider_def();
+    c.shape = STF_SHAPE_CONTAINER, c.half[0] = 0.05, c.half[1] = 0.05, c.half[2] = 0.1, c.wall = 0.02;
+    int id = add(f, c);
+    stf_fluid_set_collider_state(f, id, (double[3]){0, 0, 0}, NULL, (double[3]){0, 0, 0},
+                                 (double[3]){0, 0, 0});
+    CHECK_NEAR(stf_fluid_collider_distance(f, id, (double[3]){0.06, 0, 0.203}), 0.003, 1e-12, "over the rim");
+    CHECK_NEAR(stf_fluid_collider_distance(f, id, (double[3]){0.06, 0, 0.199}), -0.001, 1e-12, "in the rim");
+    stf_fluid_add_particle(f, (double[3]){0.06, 0, 0.206}, (double[3]){0, 0, -0.5});
+    for (int k = 0; k < 60; k++) CHECK(stf_fluid_step(f, 1e-3) == 0, "%s", stf_fluid_failure(f));
+    double y[3];
+    stf_fluid_get_positions(f, y);
+    printf("rim: the particle dropped on the wall's top is at (%.4f, %.4f, %.4f) m after 60 ms "
+           "(rim: x 0.05..0.07, top 0.2)\n", y[0], y[1], y[2]);
+    CHECK(fabs(y[0] - 0.06) < 1e-3 && fabs(y[2] - 0.205) < 1e-3,
+          "the particle left the rim for (%g, %g, %g)", y[0], y[1], y[2]);
+    stf_fluid_destroy(f);
+}
+
 int main(void)
 {
     test_shapes();
     test_on_surface();
+    test_rim();
     test_convex_on_surface();
     test_convex();
     test_remove_inside();
