@@ -97,16 +97,30 @@ static int make_container(stf_sim *s, char *err, size_t errlen)
         {{0, (Y + w) / 2, H / 2}, {X, w, H}},
     };
     dBodyID body = 0;
+    double com[3] = {0, 0, 0}; /* a dynamic container's centre of mass in its frame */
     if (c->motion != STF_MOTION_STATIC) {
         body = dBodyCreate(s->world);
-        dBodySetPosition(body, p[0], p[1], p[2]);
         if (c->motion == STF_MOTION_DYNAMIC) {
-            dMass m;
-            dMassSetBoxTotal(&m, c->mass, X + 2 * w, Y + 2 * w, H + w);
+            /* The walls and floor, uniform: ODE wants the centre of mass at the body's
+               origin, so the body sits there and the container's frame (the floor's top
+               face) is offset from it. */
+            double vol = 0;
+            for (int k = 0; k < 5; k++) vol += part[k].l[0] * part[k].l[1] * part[k].l[2];
+            dMass m, mk;
+            dMassSetZero(&m);
+            for (int k = 0; k < 5; k++) {
+                const double *l = part[k].l;
+                dMassSetBoxTotal(&mk, c->mass * l[0] * l[1] * l[2] / vol, l[0], l[1], l[2]);
+                dMassTranslate(&mk, part[k].c[0], part[k].c[1], part[k].c[2]);
+                dMassAdd(&m, &mk);
+            }
+            for (int a = 0; a < 3; a++) com[a] = m.c[a];
+            dMassTranslate(&m, -com[0], -com[1], -com[2]);
             dBodySetMass(body, &m);
         } else {
             dBodySetKinematic(body);
         }
+        dBodySetPosition(body, p[0] + com[0], p[1] + com[1], p[2] + com[2]);
         dBodySetAutoDisableFlag(body, 0);
     }
     /* Across a periodic axis (scene key container.periodic) the fluid wraps at the inner
@@ -121,7 +135,8 @@ static int make_container(stf_sim *s, char *err, size_t errlen)
         dGeomID g = dCreateBox(s->space, part[k].l[0], part[k].l[1], part[k].l[2]);
         if (body) {
             dGeomSetBody(g, body);
-            dGeomSetOffsetPosition(g, part[k].c[0], part[k].c[1], part[k].c[2]);
+            dGeomSetOffsetPosition(g, part[k].c[0] - com[0], part[k].c[1] - com[1],
+                                   part[k].c[2] - com[2]);
         } else {
             dGeomSetPosition(g, p[0] + part[k].c[0], p[1] + part[k].c[1], p[2] + part[k].c[2]);
         }
@@ -129,7 +144,7 @@ static int make_container(stf_sim *s, char *err, size_t errlen)
     s->container = body;
     memcpy(s->container_base, p, sizeof s->container_base);
     stf_ode_attach_def ad = {c->friction, c->stick};
-    double origin[3] = {0, 0, 0};
+    double origin[3] = {-com[0], -com[1], -com[2]};
     if (stf_ode_attach_container(s->coupler, body, body ? origin : p, fluid_size, w, &ad, err,
                                  errlen) != 0)
         return 2;
