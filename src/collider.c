@@ -253,8 +253,10 @@ static double hull_distance(const collider *c, const double p[3], double nl[3])
         }
     }
     double len = norm3(v);
-    if (inside || !(len > 0)) {
-        nl[0] = nl[1] = 0, nl[2] = 1;
+    if (inside || !(len > 0)) { /* touching (libccd saw no overlap): out from the origin */
+        double lp = norm3(p);
+        if (lp > 0) nl[0] = p[0] / lp, nl[1] = p[1] / lp, nl[2] = p[2] / lp;
+        else nl[0] = nl[1] = 0, nl[2] = 1;
         return 0;
     }
     for (int a = 0; a < 3; a++) nl[a] = -v[a] / len;
