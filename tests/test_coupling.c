@@ -354,9 +354,40 @@ static void test_dynamic_container(void)
     stf_scene_free(sc);
 }
 
+/* stf_ode_step's ODE contacts in a space that holds another space (a common way to group
+ * an ODE scene): a ball in a sub-space dropped on a floor box in the top space rests on it,
+ * and two balls of the sub-space meet each other. */
+static void test_nested_spaces(void)
+{
+    dWorldID w = dWorldCreate();
+    dWorldSetGravity(w, 0, 0, -9.81);
+    dSpaceID top = dHashSpaceCreate(0), sub = dSimpleSpaceCreate(top);
+    dGeomID floor_geom = dCreateBox(top, 1, 1, 0.1);
+    dGeomSetPosition(floor_geom, 0, 0, -0.05);
+    stf_fluid *f = make_fluid(STF_EFFECT_PRESSURE, 0.01, 0);
+    stf_fluid_add_block(f, (double[3]){0.3, 0.3, 0.0}, (double[3]){0.32, 0.32, 0.02},
+                        (double[3]){0, 0, 0});
+    dBodyID ball = make_sphere(w, sub, 0.02, 0.1, (double[3]){0, 0, 0.05});
+    dBodyID a = make_sphere(w, sub, 0.02, 0.1, (double[3]){-0.2, 0, 0.02});
+    dBodyID b = make_sphere(w, sub, 0.02, 0.1, (double[3]){-0.1, 0, 0.02});
+    dBodySetLinearVel(a, 1, 0, 0);
+    stf_ode *c = stf_ode_create(w, top, f);
+    for (int k = 0; k < 300; k++) CHECK(stf_ode_step(c, 0.001) == 0, "step %d", k);
+    double z = dBodyGetPosition(ball)[2], xa = dBodyGetPosition(a)[0], xb = dBodyGetPosition(b)[0];
+    printf("nested spaces: the ball rests at z = %.4f m (radius 0.02); balls at x = %.3f, %.3f m "
+           "(radius 0.02 each)\n", z, xa, xb);
+    CHECK(fabs(z - 0.02) < 0.002, "the ball in a sub-space is at z = %g m, not on the floor", z);
+    CHECK(xb - xa > 0.04 - 0.002, "the balls of a sub-space passed through each other");
+    stf_ode_destroy(c);
+    stf_fluid_destroy(f);
+    dSpaceDestroy(top);
+    dWorldDestroy(w);
+}
+
 int main(void)
 {
     dInitODE2(0);
+    test_nested_spaces();
     test_thin_walls();
     test_dynamic_container();
     test_momentum();
