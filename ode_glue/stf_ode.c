@@ -256,6 +256,10 @@ static void apply_reaction(stf_ode *c, int k, double dt)
 static void near_callback(void *data, dGeomID g1, dGeomID g2)
 {
     stf_ode *c = data;
+    if (dGeomIsSpace(g1) || dGeomIsSpace(g2)) { /* a space in the space: its geoms */
+        dSpaceCollide2(g1, g2, data, near_callback);
+        return;
+    }
     dBodyID b1 = dGeomGetBody(g1), b2 = dGeomGetBody(g2);
     if (!b1 && !b2) return;
     if (b1 && b2 && dAreConnectedExcluding(b1, b2, dJointTypeContact)) return;
@@ -276,12 +280,24 @@ static void near_callback(void *data, dGeomID g1, dGeomID g2)
     }
 }
 
+/* ODE contacts within space and, once each, within every space it holds (dSpaceCollide
+ * pairs a sub-space with its neighbours only as one geom). */
+static void collide_space(stf_ode *c, dSpaceID space)
+{
+    dSpaceCollide(space, c, near_callback);
+    int n = dSpaceGetNumGeoms(space);
+    for (int k = 0; k < n; k++) {
+        dGeomID g = dSpaceGetGeom(space, k);
+        if (dGeomIsSpace(g)) collide_space(c, (dSpaceID)g);
+    }
+}
+
 int stf_ode_step(stf_ode *c, double dt)
 {
     for (int k = 0; k < c->n; k++) sync_collider(c, &c->att[k]);
     if (stf_fluid_step(c->fluid, dt) != 0) return -1;
     for (int k = 0; k < c->n; k++) apply_reaction(c, k, dt);
-    if (c->space) dSpaceCollide(c->space, c, near_callback);
+    if (c->space) collide_space(c, c->space);
     dWorldStep(c->world, dt);
     dJointGroupEmpty(c->contacts);
     return 0;

@@ -97,16 +97,30 @@ static int make_container(stf_sim *s, char *err, size_t errlen)
         {{0, (Y + w) / 2, H / 2}, {X, w, H}},
     };
     dBodyID body = 0;
+    double com[3] = {0, 0, 0}; /* a dynamic container's centre of mass in its frame */
     if (c->motion != STF_MOTION_STATIC) {
         body = dBodyCreate(s->world);
-        dBodySetPosition(body, p[0], p[1], p[2]);
         if (c->motion == STF_MOTION_DYNAMIC) {
-            dMass m;
-            dMassSetBoxTotal(&m, c->mass, X + 2 * w, Y + 2 * w, H + w);
+            /* The walls and floor, uniform: ODE wants the centre of mass at the body's
+               origin, so the body sits there and the container's frame (the floor's top
+               face) is offset from it. */
+            double vol = 0;
+            for (int k = 0; k < 5; k++) vol += part[k].l[0] * part[k].l[1] * part[k].l[2];
+            dMass m, mk;
+            dMassSetZero(&m);
+            for (int k = 0; k < 5; k++) {
+                const double *l = part[k].l;
+                dMassSetBoxTotal(&mk, c->mass * l[0] * l[1] * l[2] / vol, l[0], l[1], l[2]);
+                dMassTranslate(&mk, part[k].c[0], part[k].c[1], part[k].c[2]);
+                dMassAdd(&m, &mk);
+            }
+            for (int a = 0; a < 3; a++) com[a] = m.c[a];
+            dMassTranslate(&m, -com[0], -com[1], -com[2]);
             dBodySetMass(body, &m);
         } else {
             dBodySetKinematic(body);
         }
+        dBodySetPosition(body, p[0] + com[0], p[1] + com[1], p[2] + com[2]);
         dBodySetAutoDisableFlag(body, 0);
     }
     /* Across a periodic axis (scene key container.periodic) the fluid wraps at the inner
@@ -121,7 +135,8 @@ static int make_container(stf_sim *s, char *err, size_t errlen)
         dGeomID g = dCreateBox(s->space, part[k].l[0], part[k].l[1], part[k].l[2]);
         if (body) {
             dGeomSetBody(g, body);
-            dGeomSetOffsetPosition(g, part[k].c[0], part[k].c[1], part[k].c[2]);
+            dGeomSetOffsetPosition(g, part[k].c[0] - com[0], part[k].c[1] - com[1],
+                                   part[k].c[2] - com[2]);
         } else {
             dGeomSetPosition(g, p[0] + part[k].c[0], p[1] + part[k].c[1], p[2] + part[k].c[2]);
         }
@@ -129,7 +144,7 @@ static int make_container(stf_sim *s, char *err, size_t errlen)
     s->container = body;
     memcpy(s->container_base, p, sizeof s->container_base);
     stf_ode_attach_def ad = {c->friction, c->stick};
-    double origin[3] = {0, 0, 0};
+    double origin[3] = {-com[0], -com[1], -com[2]};
     if (stf_ode_attach_container(s->coupler, body, body ? origin : p, fluid_size, w, &ad, err,
                                  errlen) != 0)
         return 2;
@@ -256,7 +271,14 @@ static void vibrate(stf_sim *s, dBodyID body, int k, const stf_vibration *v, con
  *   bodies:    a dynamic body moves at most BODY_TRAVEL of its inradius per substep. ODE's
  *              contacts are discrete: a body whose centre passes a wall's mid-plane within
  *              one step is pushed out on the far side (measured: a 2.5 cm lead ball at 60 m/s
- *              went through a 2 mm wall at dt = 1 ms; at 40 m/s it did not). */
+ *              went through a 2 mm wall at dt = 1 ms; at 40 m/s it did not).
+ *   thin solids: a particle moves at most half a spacing plus T relative to each solid per
+ *              substep, T the solid's thickness (the container's wall, a body's inradius).
+ *              The collisions leave particles half a spacing from a solid; a particle that
+ *              moved further would land beyond a container wall (outside: free) or past a
+ *              body's mid-plane (pushed out on the far side). Only thin solids trigger it:
+ *              with h = 2 spacings, T < spacing / 2 (the CFL bound is stricter otherwise).
+ *              The speed is the fastest particle's plus the solid's. */
 enum { MAX_SPLIT = 64 };
 static const double CFL_H = 0.5, STIFF_MAX = 0.25, BODY_TRAVEL = 0.5;
 
@@ -270,6 +292,23 @@ static double inradius(const stf_collider_def *d)
     case STF_SHAPE_CYLINDER: return fmin(d->radius, d->half_length);
     default: return 0;
     }
+}
+
+/* The largest speed (m/s) of a solid's material: body velocity, rotation about its centre
+ * at radius r, and the vibration's peak speed (vibrate() sets a kinematic body's velocity
+ * at the start of each substep, after the split is chosen). */
+static double solid_speed(dBodyID b, double r, const stf_vibration *v)
+{
+    if (!b) return 0;
+    const dReal *u = dBodyGetLinearVel(b), *w = dBodyGetAngularVel(b);
+    double sp = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]) +
+                sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) * r;
+    if (dBodyIsKinematic(b) && v->amplitude > 0) {
+        double peak = 2.0 * 3.14159265358979323846 * v->frequency * (1.0 + v->jitter) *
+                      v->amplitude;
+        if (peak > sp) sp = peak;
+    }
+    return sp;
 }
 
 static int substeps_for(const stf_sim *s, double dt)
@@ -292,6 +331,23 @@ static int substeps_for(const stf_sim *s, double dt)
         const dReal *v = dBodyGetLinearVel(s->bodies[k]);
         double travel = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) * dt / (BODY_TRAVEL * r);
         if (travel > need) need = travel;
+    }
+    double vf = stf_fluid_max_speed(s->fluid), rp = 0.5 * sc->fluid.spacing;
+    if (sc->container.present) {
+        const stf_container_def *c = &sc->container;
+        const double *z = c->size;
+        double r = sqrt(z[0] * z[0] + z[1] * z[1] + z[2] * z[2]);
+        double thin = (vf + solid_speed(s->container, r, &c->vibration)) * dt / (rp + c->wall);
+        if (thin > need) need = thin;
+    }
+    for (int k = 0; k < sc->nbodies; k++) {
+        const stf_collider_def *d = &sc->bodies[k].shape;
+        const double *hb = d->half;
+        double r = d->shape == STF_SHAPE_BOX ? sqrt(hb[0] * hb[0] + hb[1] * hb[1] + hb[2] * hb[2])
+                                             : d->radius + d->half_length;
+        double thin = (vf + solid_speed(s->bodies[k], r, &sc->bodies[k].vibration)) * dt /
+                      (rp + inradius(d));
+        if (thin > need) need = thin;
     }
     if (!(need > 1.0)) return 1;
     return need >= MAX_SPLIT ? MAX_SPLIT : (int)ceil(need);

@@ -83,23 +83,32 @@ static double sdf_cylinder(const double p[3], double r, double hl, double n[3])
 static double sdf_container(const double p[3], const double half[3], double wall, double n[3])
 {
     double hx = half[0], hy = half[1], top = 2.0 * half[2];
-    int in_shell = fabs(p[0]) <= hx + wall && fabs(p[1]) <= hy + wall && p[2] >= -wall &&
-                   p[2] <= top;
-    if (!in_shell) { /* outside the container: far from every inner wall */
+    int over = fabs(p[0]) <= hx + wall && fabs(p[1]) <= hy + wall; /* the footprint */
+    int in_wall_column = fabs(p[0]) > hx || fabs(p[1]) > hy;
+    int in_shell = over && p[2] >= -wall && p[2] <= top;
+    if (!in_shell) { /* outside the container: far from every inner wall... */
         n[0] = n[1] = 0, n[2] = 1;
-        return 1e30;
+        /* ...but over a wall's rim: its top face */
+        return over && in_wall_column && p[2] > top ? p[2] - top : 1e30;
     }
     double q[3] = {fabs(p[0]) - hx, fabs(p[1]) - hy, -p[2]};
-    if (q[0] < 0 && q[1] < 0 && q[2] < 0) { /* inside: the nearest wall or the floor */
+    /* inside or on the inner surface (<=: on it the way back below has length 0, and -p[2]
+       is -0.0 on the floor), the nearest wall or the floor */
+    if (q[0] <= 0 && q[1] <= 0 && q[2] <= 0) {
         double d = -q[0];
         n[0] = p[0] < 0 ? 1 : -1, n[1] = 0, n[2] = 0;
         if (-q[1] < d) d = -q[1], n[0] = 0, n[1] = p[1] < 0 ? 1 : -1, n[2] = 0;
         if (-q[2] < d) d = -q[2], n[0] = 0, n[1] = 0, n[2] = 1;
         return d;
     }
-    /* In the walls or floor: back to the inner box by the shortest way. */
+    /* In the walls or floor: back to the inner box by the shortest way, or up through the
+       rim when that is shorter (a particle landing on a wall's top). */
     double out[3] = {q[0] > 0 ? q[0] : 0, q[1] > 0 ? q[1] : 0, q[2] > 0 ? q[2] : 0};
     double o = norm3(out);
+    if (in_wall_column && top - p[2] < o) {
+        n[0] = n[1] = 0, n[2] = 1;
+        return p[2] - top;
+    }
     n[0] = p[0] < 0 ? out[0] / o : -out[0] / o;
     n[1] = p[1] < 0 ? out[1] / o : -out[1] / o;
     n[2] = out[2] / o;
@@ -148,6 +157,112 @@ static void center_point(const void *obj, ccd_vec3_t *center)
     ccdVec3Set(center, x[0], x[1], x[2]);
 }
 
+/* The point of the affine hull of the m points s (m <= 4) nearest the origin, as weights
+ * lam (summing to 1): the Gram system [G 1; 1' 0]. Returns -1 when it is singular. */
+static int affine_nearest(const double (*s)[3], int m, double lam[4])
+{
+    double A[5][6];
+    for (int i = 0; i < m; i++) {
+        for (int j = 0; j < m; j++)
+            A[i][j] = s[i][0] * s[j][0] + s[i][1] * s[j][1] + s[i][2] * s[j][2];
+        A[i][m] = 1, A[i][m + 1] = 0;
+    }
+    for (int j = 0; j < m; j++) A[m][j] = 1;
+    A[m][m] = 0, A[m][m + 1] = 1;
+    int N = m + 1;
+    double scale = 0;
+    for (int i = 0; i < m; i++) scale = fmax(scale, A[i][i]);
+    for (int col = 0; col < N; col++) { /* Gauss-Jordan, partial pivoting */
+        int piv = col;
+        for (int r = col + 1; r < N; r++)
+            if (fabs(A[r][col]) > fabs(A[piv][col])) piv = r;
+        if (!(fabs(A[piv][col]) > 1e-13 * (scale > 1 ? scale : 1) * (col < m ? 1 : 1e-3)))
+            return -1;
+        for (int k = 0; k <= N; k++) {
+            double t = A[col][k];
+            A[col][k] = A[piv][k], A[piv][k] = t;
+        }
+        for (int r = 0; r < N; r++) {
+            if (r == col) continue;
+            double fct = A[r][col] / A[col][col];
+            for (int k = col; k <= N; k++) A[r][k] -= fct * A[col][k];
+        }
+    }
+    for (int i = 0; i < m; i++) lam[i] = A[i][N] / A[i][i];
+    return 0;
+}
+
+/* Distance from the local point p to the hull of the body-frame points when p is outside
+ * (GJK on the points moved by -p: the hull point nearest the origin). Sets the outward unit
+ * normal nl (local); returns the distance, 0 when p is inside or on the hull. */
+static double hull_distance(const collider *c, const double p[3], double nl[3])
+{
+    const double *P = c->points;
+    int np = c->def.npoints;
+    double W[4][3], v[3];
+    int m = 1;
+    for (int a = 0; a < 3; a++) W[0][a] = P[a] - p[a], v[a] = W[0][a];
+    double tol = 1e-24 * (c->bound * c->bound + 1e-30);
+    int inside = 0;
+    for (int it = 0; it < 64; it++) {
+        double vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+        if (vv <= tol) { /* the origin is on the hull: touching */
+            inside = 1;
+            break;
+        }
+        int best = 0;
+        double bd = 1e300;
+        for (int k = 0; k < np; k++) {
+            double d = (P[3 * k] - p[0]) * v[0] + (P[3 * k + 1] - p[1]) * v[1] +
+                       (P[3 * k + 2] - p[2]) * v[2];
+            if (d < bd) bd = d, best = k;
+        }
+        if (vv - bd <= 1e-12 * vv) break; /* no point nearer along -v: v is it */
+        for (int a = 0; a < 3; a++) W[m][a] = P[3 * best + a] - p[a];
+        m++;
+        /* the sub-simplex holding the nearest point: try every subset, keep the nearest
+           one whose weights are all positive */
+        double bestn = 1e300, bv[3] = {v[0], v[1], v[2]}, bw[4][3];
+        int bm = 0;
+        for (int mask = 1; mask < (1 << m); mask++) {
+            double S[4][3], lam[4];
+            int k = 0;
+            for (int i = 0; i < m; i++)
+                if (mask >> i & 1) S[k][0] = W[i][0], S[k][1] = W[i][1], S[k][2] = W[i][2], k++;
+            if (affine_nearest((const double (*)[3])S, k, lam) != 0) continue;
+            int ok = 1;
+            for (int i = 0; i < k; i++) ok &= lam[i] > 0;
+            if (!ok) continue;
+            double q[3] = {0, 0, 0};
+            for (int i = 0; i < k; i++)
+                for (int a = 0; a < 3; a++) q[a] += lam[i] * S[i][a];
+            double qq = q[0] * q[0] + q[1] * q[1] + q[2] * q[2];
+            if (qq < bestn) {
+                bestn = qq, bm = k;
+                for (int a = 0; a < 3; a++) bv[a] = q[a];
+                for (int i = 0; i < k; i++) bw[i][0] = S[i][0], bw[i][1] = S[i][1], bw[i][2] = S[i][2];
+            }
+        }
+        if (bm == 0 || !(bestn < vv)) break; /* no progress: v is as near as it gets */
+        m = bm;
+        for (int i = 0; i < m; i++) W[i][0] = bw[i][0], W[i][1] = bw[i][1], W[i][2] = bw[i][2];
+        for (int a = 0; a < 3; a++) v[a] = bv[a];
+        if (m == 4) { /* a tetrahedron around the origin: inside */
+            inside = 1;
+            break;
+        }
+    }
+    double len = norm3(v);
+    if (inside || !(len > 0)) { /* touching (libccd saw no overlap): out from the origin */
+        double lp = norm3(p);
+        if (lp > 0) nl[0] = p[0] / lp, nl[1] = p[1] / lp, nl[2] = p[2] / lp;
+        else nl[0] = nl[1] = 0, nl[2] = 1;
+        return 0;
+    }
+    for (int a = 0; a < 3; a++) nl[a] = -v[a] / len;
+    return len;
+}
+
 static double sdf_convex(const collider *c, const double x[3], double n[3])
 {
     ccd_t ccd;
@@ -165,11 +280,26 @@ static double sdf_convex(const collider *c, const double x[3], double n[3])
        point, which overestimates it away from the face normals (by up to 11 cm for a
        40 x 20 x 10 cm box, tested); EPA finds the shortest way out. */
     if (ccdGJKPenetration(&h, x, &ccd, &depth, &dir, &pos) != 0) {
-        n[0] = n[1] = 0, n[2] = 1; /* no contact: only contacts matter here */
-        return 1e30;
+        /* outside: the distance (collisions act within half a spacing, wall pressure
+           within h), by GJK on the hull's points */
+        double p[3], nl[3];
+        to_local(c, x, p);
+        double d = hull_distance(c, p, nl);
+        to_world_dir(c, nl, n);
+        return d;
     }
     /* dir: the direction to move the point to separate it, i.e. out of the hull. */
     n[0] = ccdVec3X(&dir), n[1] = ccdVec3Y(&dir), n[2] = ccdVec3Z(&dir);
+    double len = norm3(n);
+    if (!(len > 0.5 && len < 2) || !(depth > 1e-12 * c->bound)) {
+        /* A point on the surface (depth 0): EPA has no direction, and gives NaN at a corner
+           or a tangent at a face. Out along the line from the hull's origin instead. */
+        double r[3] = {x[0] - c->pos[0], x[1] - c->pos[1], x[2] - c->pos[2]};
+        double l = norm3(r);
+        if (l > 0) n[0] = r[0] / l, n[1] = r[1] / l, n[2] = r[2] / l;
+        else n[0] = n[1] = 0, n[2] = 1;
+        return isfinite(depth) ? -depth : 0.0;
+    }
     return -depth;
 }
 

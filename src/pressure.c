@@ -75,13 +75,14 @@ static void wall_sums(const stf_fluid *f, double d, double out[W_COUNT])
  * collider's bounding sphere (radius c->bound about c->pos) holds the solid, and for these
  * shapes the distance function is the exact distance outside, so it is at least the
  * distance to that sphere. The margin covers rounding, so the distance skipped would have
- * been >= h anyway (same results). Planes, containers (bound < 0) and convex hulls (whose
- * distance is the largest face-plane distance, less than the true one) are always asked. */
+ * been >= h anyway (same results). Convex hulls too (the GJK distance outside is exact).
+ * Planes and containers (bound < 0) are always asked. */
 static int wall_far(const collider *c, const double x[3], double h)
 {
     int shape = c->def.shape;
     if (c->bound < 0 || !(shape == STF_SHAPE_SPHERE || shape == STF_SHAPE_BOX ||
-                          shape == STF_SHAPE_CAPSULE || shape == STF_SHAPE_CYLINDER))
+                          shape == STF_SHAPE_CAPSULE || shape == STF_SHAPE_CYLINDER ||
+                          shape == STF_SHAPE_CONVEX))
         return 0;
     double dx = x[0] - c->pos[0], dy = x[1] - c->pos[1], dz = x[2] - c->pos[2];
     double R = (c->bound + h) * (1.0 + 1e-9);

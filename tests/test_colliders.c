@@ -83,7 +83,8 @@ static void test_shapes(void)
     stf_fluid_destroy(f);
 }
 
-/* The convex hull of a box's corners (libccd GJK+EPA) gives the box's penetration depth. */
+/* The convex hull of a box's corners (libccd GJK+EPA) gives the box's penetration depth, and
+ * its distance outside. */
 static void test_convex(void)
 {
     stf_fluid *f = fluid();
@@ -103,21 +104,27 @@ static void test_convex(void)
     rot_z(0.7, R);
     stf_fluid_set_collider_state(f, hull, pos, R, v0, v0);
     stf_fluid_set_collider_state(f, box, pos, R, v0, v0);
-    double worst = 0;
+    double worst = 0, worst_out = 0;
     unsigned s = 7;
-    for (int k = 0; k < 200; k++) {
+    int nout = 0;
+    for (int k = 0; k < 400; k++) {
         double x[3];
         for (int a = 0; a < 3; a++) {
             s = s * 1664525u + 1013904223u;
-            x[a] = pos[a] + 0.18 * ((s >> 8) / 16777216.0 - 0.5);
+            x[a] = pos[a] + (k < 200 ? 0.18 : 0.6) * ((s >> 8) / 16777216.0 - 0.5);
         }
         double db = stf_fluid_collider_distance(f, box, x);
-        if (db >= 0) continue; /* only penetration is reported */
         double dh = stf_fluid_collider_distance(f, hull, x);
-        worst = fmax(worst, fabs(dh - db));
+        if (db < 0) worst = fmax(worst, fabs(dh - db));
+        /* outside: the distance too, within the reach of collisions and wall pressure (h),
+           as for every other shape */
+        else if (db < 0.05) worst_out = fmax(worst_out, fabs(dh - db)), nout++;
     }
-    printf("convex vs box: worst depth difference %.3g m\n", worst);
+    printf("convex vs box: worst depth difference %.3g m; outside (%d points within 5 cm) "
+           "%.3g m\n", worst, nout, worst_out);
     CHECK(worst < 1e-6, "EPA depth differs from the box by %g m", worst);
+    CHECK(nout > 20 && worst_out < 1e-9, "the hull's distance outside differs from the box's by %g m",
+          worst_out);
     stf_fluid_destroy(f);
 }
 
@@ -155,9 +162,110 @@ static void test_remove_inside(void)
     stf_fluid_destroy(f);
 }
 
+/* One particle at rest exactly on a solid's surface (a face, an edge, a corner, or the floor
+ * at z = 0, where -z is -0.0) stays finite and is pushed out to at least half a spacing: in
+ * one step from a face, in three from a corner (one face per step). */
+static void on_surface(const char *what, stf_collider_def c, const double x[3], double want_d,
+                       int steps)
+{
+    stf_fluid *f = fluid();
+    int id = add(f, c);
+    stf_fluid_set_collider_state(f, id, (double[3]){0, 0, 0}, NULL, (double[3]){0, 0, 0},
+                                 (double[3]){0, 0, 0});
+    stf_fluid_add_particle(f, x, (double[3]){0, 0, 0});
+    int rc = 0;
+    for (int k = 0; k < steps && rc == 0; k++) rc = stf_fluid_step(f, 1e-3);
+    CHECK(rc == 0, "%s: %s", what, stf_fluid_failure(f));
+    double y[3];
+    stf_fluid_get_positions(f, y);
+    double d = stf_fluid_collider_distance(f, id, y);
+    printf("on surface, %s: distance after %d step(s) %.3g m\n", what, steps, d);
+    CHECK(isfinite(d) && d >= want_d - 1e-12 && d < 2 * want_d,
+          "%s: distance %g after the step, want %g (or a bit more)", what, d, want_d);
+    stf_fluid_destroy(f);
+}
+
+static void test_on_surface(void)
+{
+    const double rp = 0.005; /* half the spacing */
+    stf_collider_def c = stf_default_collider_def();
+    c.shape = STF_SHAPE_CONTAINER, c.half[0] = 0.05, c.half[1] = 0.05, c.half[2] = 0.1, c.wall = 0.02;
+    on_surface("container wall", c, (double[3]){0.05, 0.01, 0.05}, rp, 1);
+    on_surface("container floor", c, (double[3]){0.01, 0.02, 0}, rp, 1);
+    on_surface("container corner", c, (double[3]){-0.05, 0.05, 0}, rp, 3);
+}
+
+/* A particle at rest exactly on a convex hull's surface (corner, face, edge) or at its centre
+ * stays finite and is pushed out (EPA has no direction at depth 0). */
+static void test_convex_on_surface(void)
+{
+    const double rp = 0.005;
+    double pts[24];
+    for (int k = 0; k < 8; k++) {
+        pts[3 * k] = (k & 1) ? 0.05 : -0.05;
+        pts[3 * k + 1] = (k & 2) ? 0.05 : -0.05;
+        pts[3 * k + 2] = (k & 4) ? 0.05 : -0.05;
+    }
+    stf_collider_def h = stf_default_collider_def();
+    h.shape = STF_SHAPE_CONVEX, h.points = pts, h.npoints = 8;
+    /* a corner, a face, an edge and the centre: each ends out of the cube (not to half a
+       spacing exactly: the hull reports penetration only, and the pressure's wall push of
+       the same step may already have moved the particle out) */
+    stf_fluid *f = fluid();
+    int id = add(f, h);
+    stf_fluid_set_collider_state(f, id, (double[3]){0, 0, 0}, NULL, (double[3]){0, 0, 0},
+                                 (double[3]){0, 0, 0});
+    const double at[4][3] = {{0.05, 0.05, 0.05}, {0.05, 0.01, 0.02}, {0.05, -0.05, 0.01}, {0, 0, 0}};
+    for (int k = 0; k < 4; k++) stf_fluid_add_particle(f, at[k], (double[3]){0, 0, 0});
+    int rc = stf_fluid_step(f, 1e-3);
+    CHECK(rc == 0, "convex: %s", stf_fluid_failure(f));
+    double y[12];
+    stf_fluid_get_positions(f, y);
+    for (int i = 0; i < 4; i++) {
+        double o = 0; /* distance from the cube, exact */
+        for (int a = 0; a < 3; a++) o += pow(fmax(fabs(y[3 * i + a]) - 0.05, 0), 2);
+        o = sqrt(o);
+        printf("on surface, convex, particle %d: %.3g m from the cube after one step\n", i, o);
+        CHECK(isfinite(y[3 * i] + y[3 * i + 1] + y[3 * i + 2]) && o > 0.5 * rp, "convex: particle %d is %g m from the cube", i, o);
+    }
+    stf_fluid_destroy(f);
+}
+
+/* A wall's rim is solid too: a particle falling on the top of a 2 cm container wall rests
+ * on it (half a spacing above), it is not moved sideways into the container. */
+static void test_rim(void)
+{
+    stf_fluid_def d = stf_default_fluid_def();
+    d.jitter = 0;
+    d.effects = STF_EFFECT_PRESSURE | STF_EFFECT_GRAVITY;
+    d.spacing = 0.01;
+    char err[256];
+    stf_fluid *f;
+    if (stf_fluid_create(&d, &f, err, sizeof err)) exit(1);
+    stf_collider_def c = stf_default_collider_def();
+    c.shape = STF_SHAPE_CONTAINER, c.half[0] = 0.05, c.half[1] = 0.05, c.half[2] = 0.1, c.wall = 0.02;
+    int id = add(f, c);
+    stf_fluid_set_collider_state(f, id, (double[3]){0, 0, 0}, NULL, (double[3]){0, 0, 0},
+                                 (double[3]){0, 0, 0});
+    CHECK_NEAR(stf_fluid_collider_distance(f, id, (double[3]){0.06, 0, 0.203}), 0.003, 1e-12, "over the rim");
+    CHECK_NEAR(stf_fluid_collider_distance(f, id, (double[3]){0.06, 0, 0.199}), -0.001, 1e-12, "in the rim");
+    stf_fluid_add_particle(f, (double[3]){0.06, 0, 0.206}, (double[3]){0, 0, -0.5});
+    for (int k = 0; k < 60; k++) CHECK(stf_fluid_step(f, 1e-3) == 0, "%s", stf_fluid_failure(f));
+    double y[3];
+    stf_fluid_get_positions(f, y);
+    printf("rim: the particle dropped on the wall's top is at (%.4f, %.4f, %.4f) m after 60 ms "
+           "(rim: x 0.05..0.07, top 0.2)\n", y[0], y[1], y[2]);
+    CHECK(fabs(y[0] - 0.06) < 1e-3 && fabs(y[2] - 0.205) < 1e-3,
+          "the particle left the rim for (%g, %g, %g)", y[0], y[1], y[2]);
+    stf_fluid_destroy(f);
+}
+
 int main(void)
 {
     test_shapes();
+    test_on_surface();
+    test_rim();
+    test_convex_on_surface();
     test_convex();
     test_remove_inside();
     return test_result("test_colliders");

@@ -3,7 +3,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "stf_ode.h"
+#include "stf_sim.h"
 #include "test_util.h"
 
 static stf_fluid *make_fluid(unsigned effects, double spacing, double jitter)
@@ -247,9 +247,149 @@ static void test_resting_sphere(void)
     free_pool(&p);
 }
 
+/* Adaptive substeps keep particles inside a container with a thin wall: a particle moving
+ * at 0.9 spacing per step (within the CFL bound of h/2) towards a 2 mm wall, from 6 mm
+ * away, must not land beyond the wall (the collider then sees it outside, free). The same
+ * for a thin plate body (a box 2 mm thick). */
+static void test_thin_walls(void)
+{
+    static const char *const scene =
+        "name: thin\n"
+        "duration: 1\n"
+        "dt: 0.002\n"
+        "fluid:\n"
+        "  spacing: 0.01\n"
+        "  blocks:\n"
+        "    - {min: [0.039, -0.005, 0.045], max: [0.049, 0.005, 0.055], velocity: [4.5, 0, 0]}\n"
+        "    - {min: [-0.029, 0.015, 0.045], max: [-0.019, 0.025, 0.055], velocity: [-4.5, 0, 0]}\n"
+        "effects:\n"
+        "  pressure: {}\n"
+        "container:\n"
+        "  size: [0.1, 0.1, 0.2]\n"
+        "  wall: 0.002\n"
+        "  stick: false\n"
+        "bodies:\n"
+        "  - {name: plate, shape: box, size: [0.002, 0.08, 0.08], position: [-0.04, 0, 0.05], "
+        "motion: kinematic}\n";
+    char err[1024];
+    stf_scene *sc = NULL;
+    stf_sim *s = NULL;
+    CHECK(stf_scene_load_string("thin.yaml", scene, NULL, 0, &sc, err, sizeof err) == 0, "%s", err);
+    if (sc) CHECK(stf_sim_create(sc, &s, err, sizeof err) == 0, "%s", err);
+    if (!s) {
+        stf_scene_free(sc);
+        return;
+    }
+    CHECK(stf_fluid_count(s->fluid) == 2, "%d particles", stf_fluid_count(s->fluid));
+    for (int k = 0; k < 5; k++) CHECK(stf_sim_step(s) == 0, "step %d", k);
+    double x[6];
+    int32_t id[2];
+    stf_fluid_get_positions(s->fluid, x);
+    stf_fluid_get_ids(s->fluid, id);
+    for (int i = 0; i < 2; i++) {
+        printf("thin walls: particle %d at x = %.4f m after %ld substeps (%s at %s m)\n", id[i],
+               x[3 * i], s->substeps, id[i] == 0 ? "container wall" : "plate",
+               id[i] == 0 ? "0.050..0.052" : "-0.041..-0.039");
+        if (id[i] == 0) CHECK(x[3 * i] < 0.05, "the particle went through the 2 mm container wall");
+        else CHECK(x[3 * i] > -0.039, "the particle went through the 2 mm plate");
+    }
+    stf_sim_destroy(s);
+    stf_scene_free(sc);
+}
+
+/* A dynamic container, no gravity, set spinning: with no force on it (the fluid is far from
+ * the walls) the centre of mass of its walls and floor stays where it is. It rotates about
+ * that point, not about the frame origin at the floor's top face. */
+static void test_dynamic_container(void)
+{
+    static const char *const scene =
+        "name: spin\n"
+        "duration: 1\n"
+        "dt: 0.002\n"
+        "fluid:\n"
+        "  spacing: 0.01\n"
+        "  blocks:\n"
+        "    - {min: [0.095, 0.195, 0.445], max: [0.105, 0.205, 0.455]}\n"
+        "effects:\n"
+        "  pressure: {}\n"
+        "container:\n"
+        "  size: [0.4, 0.4, 0.3]\n"
+        "  wall: 0.02\n"
+        "  position: [0.1, 0.2, 0.3]\n"
+        "  motion: dynamic\n"
+        "  mass: 2\n";
+    char err[1024];
+    stf_scene *sc = NULL;
+    stf_sim *s = NULL;
+    CHECK(stf_scene_load_string("spin.yaml", scene, NULL, 0, &sc, err, sizeof err) == 0, "%s", err);
+    if (sc) CHECK(stf_sim_create(sc, &s, err, sizeof err) == 0, "%s", err);
+    if (!s) {
+        stf_scene_free(sc);
+        return;
+    }
+    /* the material's centre: the five wall boxes' centres weighted by their volumes */
+    double c0[3] = {0, 0, 0}, c1[3];
+    for (int pass = 0; pass < 2; pass++) {
+        double *c = pass ? c1 : c0, vol = 0;
+        c[0] = c[1] = c[2] = 0;
+        for (int k = 0; k < s->ngeoms; k++) {
+            dVector3 l;
+            dGeomBoxGetLengths(s->geoms[k], l);
+            const dReal *g = dGeomGetPosition(s->geoms[k]);
+            double v = l[0] * l[1] * l[2];
+            for (int a = 0; a < 3; a++) c[a] += v * g[a];
+            vol += v;
+        }
+        for (int a = 0; a < 3; a++) c[a] /= vol;
+        if (pass) break;
+        CHECK(s->ngeoms == 5 && s->container, "%d geoms", s->ngeoms);
+        dBodySetAngularVel(s->container, 2, 0, 0);
+        for (int k = 0; k < 50; k++) CHECK(stf_sim_step(s) == 0, "step %d", k);
+    }
+    double moved = sqrt((c1[0] - c0[0]) * (c1[0] - c0[0]) + (c1[1] - c0[1]) * (c1[1] - c0[1]) +
+                        (c1[2] - c0[2]) * (c1[2] - c0[2]));
+    printf("dynamic container: spun 0.2 rad, its centre of mass moved %.3g m\n", moved);
+    CHECK(moved < 1e-6, "the centre of mass of a free container moved %g m", moved);
+    stf_sim_destroy(s);
+    stf_scene_free(sc);
+}
+
+/* stf_ode_step's ODE contacts in a space that holds another space (a common way to group
+ * an ODE scene): a ball in a sub-space dropped on a floor box in the top space rests on it,
+ * and two balls of the sub-space meet each other. */
+static void test_nested_spaces(void)
+{
+    dWorldID w = dWorldCreate();
+    dWorldSetGravity(w, 0, 0, -9.81);
+    dSpaceID top = dHashSpaceCreate(0), sub = dSimpleSpaceCreate(top);
+    dGeomID floor_geom = dCreateBox(top, 1, 1, 0.1);
+    dGeomSetPosition(floor_geom, 0, 0, -0.05);
+    stf_fluid *f = make_fluid(STF_EFFECT_PRESSURE, 0.01, 0);
+    stf_fluid_add_block(f, (double[3]){0.3, 0.3, 0.0}, (double[3]){0.32, 0.32, 0.02},
+                        (double[3]){0, 0, 0});
+    dBodyID ball = make_sphere(w, sub, 0.02, 0.1, (double[3]){0, 0, 0.05});
+    dBodyID a = make_sphere(w, sub, 0.02, 0.1, (double[3]){-0.2, 0, 0.02});
+    dBodyID b = make_sphere(w, sub, 0.02, 0.1, (double[3]){-0.1, 0, 0.02});
+    dBodySetLinearVel(a, 1, 0, 0);
+    stf_ode *c = stf_ode_create(w, top, f);
+    for (int k = 0; k < 300; k++) CHECK(stf_ode_step(c, 0.001) == 0, "step %d", k);
+    double z = dBodyGetPosition(ball)[2], xa = dBodyGetPosition(a)[0], xb = dBodyGetPosition(b)[0];
+    printf("nested spaces: the ball rests at z = %.4f m (radius 0.02); balls at x = %.3f, %.3f m "
+           "(radius 0.02 each)\n", z, xa, xb);
+    CHECK(fabs(z - 0.02) < 0.002, "the ball in a sub-space is at z = %g m, not on the floor", z);
+    CHECK(xb - xa > 0.04 - 0.002, "the balls of a sub-space passed through each other");
+    stf_ode_destroy(c);
+    stf_fluid_destroy(f);
+    dSpaceDestroy(top);
+    dWorldDestroy(w);
+}
+
 int main(void)
 {
     dInitODE2(0);
+    test_nested_spaces();
+    test_thin_walls();
+    test_dynamic_container();
     test_momentum();
     test_archimedes();
     test_archimedes_sphere();
