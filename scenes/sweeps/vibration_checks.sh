@@ -42,9 +42,11 @@ pair thin_onset3000 "$H" "$N" "${thin[@]}" --set fluid.spacing=0.01 --set effect
 
 # The paper's "equally distributed vibration sources": nine 6 x 6 cm kinematic pistons in the
 # floor under a 6 cm layer, 10 Hz, 1.5 cm, each with its own random frequency changes.
-pistons() { # pistons HISTORY(0|1)
+# layer NAME HALF_WIDTH DEPTH HISTORY(0|1) D ONSET: a scene's head, 3 s at 1 cm, the bowling
+# pool's fluid in a box of the given half width and depth (m), with or without history
+layer() {
     cat <<YAML
-name: vibration_sources
+name: $1
 duration: 3.0
 dt: 0.001
 frame_rate: 30
@@ -53,17 +55,21 @@ fluid:
   spacing: 0.01
   density: 1270
   blocks:
-    - {min: [-0.15, -0.15, 0.0], max: [0.15, 0.15, 0.06]}
+    - {min: [-$2, -$2, 0.0], max: [$2, $2, $3]}
 effects:
   gravity: {g: [0, 0, -9.81]}
   viscosity: {sigma: 10.0}
   pressure: {k: 1000, k_near: 200}
   springs: {k_min: 100, yield_ratio: 0.0, plasticity: 2.0}
 YAML
-    [ "$1" = 1 ] && cat <<YAML
-  history: {q: 0.5, d: 50, k_hist: 200000, reference_spacing: 0.02, k_onset: 3000}
+    [ "$4" = 1 ] && cat <<YAML
+  history: {q: 0.5, d: $5, k_hist: 200000, reference_spacing: 0.02, k_onset: $6}
   boundary_stick: {stick: 200}
 YAML
+    return 0
+}
+pistons() { # pistons HISTORY(0|1)
+    layer vibration_sources 0.15 0.06 "$1" 50 3000
     printf 'container: {size: [0.3, 0.3, 0.3], wall: 0.02, friction: 0.2}\nbodies:\n'
     local n=0 x y
     for x in -0.1 0 0.1; do for y in -0.1 0 0.1; do n=$((n + 1)); cat <<YAML
@@ -82,27 +88,7 @@ pair sources_d500 "$DIR/sources.yaml" "$DIR/sources_no_history.yaml" --set effec
 # 2, 5, 10 mm (0.8-36 g), k_hist 5e4 and 2e5, onset 0 and 3000, against the same without
 # history: `stf sweep` of each, and the ratio of the finger heights (about 4 s of CPU a run).
 thin() { # thin HISTORY(0|1)
-    cat <<YAML
-name: thin_layer
-duration: 3.0
-dt: 0.001
-frame_rate: 30
-fluid:
-  model: clavet_stf
-  spacing: 0.01
-  density: 1270
-  blocks:
-    - {min: [-0.1, -0.1, 0.0], max: [0.1, 0.1, 0.04]}
-effects:
-  gravity: {g: [0, 0, -9.81]}
-  viscosity: {sigma: 10.0}
-  pressure: {k: 1000, k_near: 200}
-  springs: {k_min: 100, yield_ratio: 0.0, plasticity: 2.0}
-YAML
-    [ "$1" = 1 ] && cat <<YAML
-  history: {q: 0.5, d: 150, k_hist: 200000, reference_spacing: 0.02, k_onset: 0}
-  boundary_stick: {stick: 200}
-YAML
+    layer thin_layer 0.1 0.04 "$1" 150 0
     cat <<YAML
 container:
   size: [0.2, 0.2, 0.25]
