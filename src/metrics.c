@@ -55,6 +55,7 @@ static void body_metrics(const stf_h5r *r, const char *name, double surface,
                 b->bounces++;
                 descending = 0;
                 zmax = z;
+                if (zmax - zmin > b->max_rebound_height) b->max_rebound_height = zmax - zmin;
             }
         } else {
             if (z > zmax) zmax = z;

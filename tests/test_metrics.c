@@ -170,6 +170,32 @@ static void test_body(const char *path)
     CHECK_NEAR(b->rest_duration, 2.5, 1e-9, "rest_duration (to the end of the run)");
 }
 
+/* A body that touches and rises clearly (a bounce) in the run's last sample: the bounce is
+ * counted, so its rise is the max_rebound_height (not 0 with bounces 1). */
+static void test_bounce_at_end(const char *path)
+{
+    char err[512];
+    stf_h5 *h;
+    CHECK(stf_h5_create(path, &h, err, sizeof err) == 0, "create: %s", err);
+    if (!h) return;
+    stf_h5_attr_double(h, "spacing", S);
+    stf_h5_attr_double(h, "bounce_min_rise", 0.01);
+    stf_h5_attr_double(h, "body.ball.half_height", 0.1);
+    static double x[3 * MAXP], v[3 * MAXP];
+    int n = surface(0, 0, x);
+    CHECK(stf_h5_write_frame(h, 0.0, n, x, v, NULL, NULL) == 0, "frame");
+    const double q[4] = {1, 0, 0, 0}, w[3] = {0}, f[3] = {0}, zs[] = {0.16, 0.14, 0.12, 0.14};
+    for (int i = 0; i < 4; i++) {
+        double pos[3] = {0.1, 0.1, zs[i]}, vel[3] = {0, 0, 0};
+        CHECK(stf_h5_body_append(h, "ball", 0.01 * i, pos, q, vel, w, f) == 0, "row %d", i);
+    }
+    CHECK(stf_h5_close(h, err, sizeof err) == 0, "close: %s", err);
+    stf_metrics m;
+    CHECK(stf_metrics_compute(path, &m, err, sizeof err) == 0, "metrics: %s", err);
+    CHECK(m.nbodies == 1 && m.bodies[0].bounces == 1, "bounces %d", m.bodies[0].bounces);
+    CHECK_NEAR(m.bodies[0].max_rebound_height, 0.02, 1e-9, "max_rebound_height of a last-sample bounce");
+}
+
 int main(void)
 {
     char path[] = "/tmp/stf_test_metricsXXXXXX";
@@ -179,6 +205,7 @@ int main(void)
     test_finger_height(path);
     test_drop(path);
     test_body(path);
+    test_bounce_at_end(path);
     unlink(path);
     char xmf[sizeof path + 8];
     snprintf(xmf, sizeof xmf, "%s.xmf", path);
