@@ -884,6 +884,8 @@ static int parse_body(loader *L, struct fy_node *item, int i, int *first)
     if (r <= 0) return r < 0 ? SCENE_BAD : missing(L, &m, "name", NULL);
     if (!valid_name(b->name))
         return fail_value(L, &m, "name", "must be non-empty and use only [A-Za-z0-9_]");
+    if (!strcmp(b->name, "fluid")) /* expect: fluid.KEY names the fluid's metrics */
+        return fail_value(L, &m, "name", "'fluid' is reserved (expect: fluid.KEY is a fluid metric)");
     for (int j = 0; j < i; j++) {
         if (strcmp(L->s->bodies[j].name, b->name)) continue;
         char what[160];

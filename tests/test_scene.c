@@ -303,6 +303,9 @@ static void test_errors(void)
     EXPECT_ERROR(MIN_HEAD MIN_EFFECTS "bodies:\n  - {name: a, shape: sphere, radius: 1, mass: 1}\n"
                                       "  - {name: a, shape: sphere, radius: 1, mass: 1}\n",
                  "t.yaml:12:12: bodies.1.name: duplicate body name", NULL);
+    /* a body named fluid could not be named by an expectation (fluid.bounces is a fluid key) */
+    EXPECT_ERROR(MIN_HEAD MIN_EFFECTS "bodies:\n  - {name: fluid, shape: sphere, radius: 1, mass: 1}\n",
+                 "t.yaml:11:12: bodies.0.name: 'fluid' is reserved", NULL);
     EXPECT_ERROR(MIN_HEAD MIN_EFFECTS
                  "bodies:\n  - {name: a, shape: sphere, radius: 1, mass: 1, density: 2}\n",
                  "bodies.0.density: give either mass or density", NULL);
