@@ -196,6 +196,37 @@ static void test_bounce_at_end(const char *path)
     CHECK_NEAR(m.bodies[0].max_rebound_height, 0.02, 1e-9, "max_rebound_height of a last-sample bounce");
 }
 
+/* A slab (box, half extents 0.03 x 0.005 x 0.005 m) turned 90 degrees about y: it stands
+ * 0.03 m below and above its centre, not its local half height 0.005 m. It comes down at
+ * 1 m/s from z = 0.202 over the surface at 0.055 m (samples every 5 ms): its underside is
+ * within a spacing at z <= 0.095 (t >= 0.107 s: the sample at 0.11 s), its top below the
+ * surface at z < 0.025 (t > 0.177 s: 0.18 s). */
+static void test_turned_slab(const char *path)
+{
+    char err[512];
+    stf_h5 *h;
+    CHECK(stf_h5_create(path, &h, err, sizeof err) == 0, "create: %s", err);
+    if (!h) return;
+    stf_h5_attr_double(h, "spacing", S);
+    stf_h5_attr_double(h, "body.slab.half_height", 0.005);
+    stf_h5_attr_string(h, "body.slab.shape", "box 0.03 0.005 0.005");
+    static double x[3 * MAXP], v[3 * MAXP];
+    int n = surface(0, 0, x);
+    CHECK(stf_h5_write_frame(h, 0.0, n, x, v, NULL, NULL) == 0, "frame");
+    const double q[4] = {sqrt(0.5), 0, sqrt(0.5), 0}, w[3] = {0}, f[3] = {0};
+    for (int i = 0; i <= 40; i++) {
+        double t = 0.005 * i, pos[3] = {0.1, 0.1, 0.202 - t}, vel[3] = {0, 0, -1};
+        CHECK(stf_h5_body_append(h, "slab", t, pos, q, vel, w, f) == 0, "row %d", i);
+    }
+    CHECK(stf_h5_close(h, err, sizeof err) == 0, "close: %s", err);
+    stf_metrics m;
+    CHECK(stf_metrics_compute(path, &m, err, sizeof err) == 0, "metrics: %s", err);
+    CHECK(m.nbodies == 1, "bodies %d", m.nbodies);
+    if (m.nbodies != 1) return;
+    CHECK_NEAR(m.bodies[0].first_contact_time, 0.11, 1e-9, "first_contact_time of the turned slab");
+    CHECK_NEAR(m.bodies[0].sink_time, 0.18, 1e-9, "sink_time of the turned slab");
+}
+
 int main(void)
 {
     char path[] = "/tmp/stf_test_metricsXXXXXX";
@@ -206,6 +237,7 @@ int main(void)
     test_drop(path);
     test_body(path);
     test_bounce_at_end(path);
+    test_turned_slab(path);
     unlink(path);
     char xmf[sizeof path + 8];
     snprintf(xmf, sizeof xmf, "%s.xmf", path);
