@@ -6,6 +6,7 @@
  * offending node (such nodes carry the override's index as libfyaml node meta data).
  */
 #define _POSIX_C_SOURCE 200809L
+#include "metrics.h"
 #include "stf.h"
 
 #include <errno.h>
@@ -916,6 +917,13 @@ static int parse_bodies(loader *L, const mapv *top)
     if (!k || is_null(v)) return 0;
     if (!fy_node_is_sequence(v)) return fail(L, v, k, "bodies", "expected a list of bodies");
     int n = fy_node_sequence_item_count(v);
+    if (n > STF_METRICS_MAX_BODIES) { /* the report and expect would miss the others */
+        char path[64], what[96];
+        snprintf(path, sizeof path, "bodies.%d", STF_METRICS_MAX_BODIES);
+        snprintf(what, sizeof what, "at most %d bodies (the run metrics hold that many)",
+                 STF_METRICS_MAX_BODIES);
+        return fail(L, fy_node_sequence_get_by_index(v, STF_METRICS_MAX_BODIES), k, path, "%s", what);
+    }
     int *first = calloc((size_t)n + 1, sizeof *first);
     L->s->bodies = calloc((size_t)n + 1, sizeof *L->s->bodies);
     if (!first || !L->s->bodies) {

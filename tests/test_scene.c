@@ -303,6 +303,15 @@ static void test_errors(void)
     EXPECT_ERROR(MIN_HEAD MIN_EFFECTS "bodies:\n  - {name: a, shape: sphere, radius: 1, mass: 1}\n"
                                       "  - {name: a, shape: sphere, radius: 1, mass: 1}\n",
                  "t.yaml:12:12: bodies.1.name: duplicate body name", NULL);
+    {   /* the metrics hold 16 bodies: a 17th would be missing from the report and expect */
+        static char many[4096];
+        int len = snprintf(many, sizeof many, "%s", MIN_HEAD MIN_EFFECTS "bodies:\n");
+        for (int i = 0; i < 17; i++)
+            len += snprintf(many + len, sizeof many - (size_t)len,
+                            "  - {name: b%d, shape: sphere, radius: 0.01, mass: 1, position: [%d, 0, 1]}\n",
+                            i, i);
+        EXPECT_ERROR(many, "t.yaml:27:", "bodies.16: at most 16 bodies");
+    }
     /* a body named fluid could not be named by an expectation (fluid.bounces is a fluid key) */
     EXPECT_ERROR(MIN_HEAD MIN_EFFECTS "bodies:\n  - {name: fluid, shape: sphere, radius: 1, mass: 1}\n",
                  "t.yaml:11:12: bodies.0.name: 'fluid' is reserved", NULL);
