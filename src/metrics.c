@@ -70,7 +70,7 @@ static void body_metrics(const stf_h5r *r, const char *name, double surface,
         double z = p[3 * i + 2], below = hh, above = hh;
         if (oriented) shape_reach(&shape, qs + 4 * i, &below, &above);
         if (contact < 0) {
-            if (z - below > surface + g->spacing) continue;
+            if (!(z - below <= surface + g->spacing)) continue; /* no fluid (NaN): never */
             contact = i;
             b->first_contact_time = t[i];
             zmin = zmax = z;

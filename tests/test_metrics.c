@@ -227,6 +227,35 @@ static void test_turned_slab(const char *path)
     CHECK_NEAR(m.bodies[0].sink_time, 0.18, 1e-9, "sink_time of the turned slab");
 }
 
+/* No fluid (every particle removed at setup, inside the body): surface_height is null, and
+ * a body falling through the empty box never touches fluid nor rests on it. */
+static void test_no_fluid(const char *path)
+{
+    char err[512];
+    stf_h5 *h;
+    CHECK(stf_h5_create(path, &h, err, sizeof err) == 0, "create: %s", err);
+    if (!h) return;
+    stf_h5_attr_double(h, "spacing", S);
+    stf_h5_attr_double(h, "body.ball.half_height", 0.05);
+    double x[3] = {0}, v[3] = {0};
+    CHECK(stf_h5_write_frame(h, 0.0, 0, x, v, NULL, NULL) == 0, "frame");
+    const double q[4] = {1, 0, 0, 0}, w[3] = {0}, f[3] = {0};
+    for (int i = 0; i < 4; i++) {
+        double pos[3] = {0, 0, 0.1 - 0.0001 * i}, vel[3] = {0, 0, -0.01};
+        CHECK(stf_h5_body_append(h, "ball", 0.01 * i, pos, q, vel, w, f) == 0, "row %d", i);
+    }
+    CHECK(stf_h5_close(h, err, sizeof err) == 0, "close: %s", err);
+    stf_metrics m;
+    CHECK(stf_metrics_compute(path, &m, err, sizeof err) == 0, "metrics: %s", err);
+    CHECK(m.surface_height != m.surface_height, "surface_height %g without fluid", m.surface_height);
+    CHECK(m.nbodies == 1, "bodies %d", m.nbodies);
+    if (m.nbodies != 1) return;
+    CHECK(m.bodies[0].first_contact_time != m.bodies[0].first_contact_time,
+          "first_contact_time %g without fluid", m.bodies[0].first_contact_time);
+    CHECK(m.bodies[0].rest_time != m.bodies[0].rest_time, "rest_time %g without fluid",
+          m.bodies[0].rest_time);
+}
+
 int main(void)
 {
     char path[] = "/tmp/stf_test_metricsXXXXXX";
@@ -238,6 +267,7 @@ int main(void)
     test_body(path);
     test_bounce_at_end(path);
     test_turned_slab(path);
+    test_no_fluid(path);
     unlink(path);
     char xmf[sizeof path + 8];
     snprintf(xmf, sizeof xmf, "%s.xmf", path);
