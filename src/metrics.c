@@ -130,10 +130,12 @@ static int column_heights(const double *x, int n, double cell, double *out, int 
         x0 = fmin(x0, x[3 * i]), x1 = fmax(x1, x[3 * i]);
         y0 = fmin(y0, x[3 * i + 1]), y1 = fmax(y1, x[3 * i + 1]);
     }
-    int nx = (int)((x1 - x0) / cell) + 1, ny = (int)((y1 - y0) / cell) + 1;
-    if ((long)nx * ny > maxcols) return 0;
+    double fx = floor((x1 - x0) / cell) + 1, fy = floor((y1 - y0) / cell) + 1;
+    if (!(fx * fy <= maxcols)) return 0; /* also a particle flown far, or no finite one */
+    int nx = (int)fx, ny = (int)fy;
     for (int c = 0; c < nx * ny; c++) out[c] = -INFINITY;
     for (int i = 0; i < n; i++) {
+        if (!isfinite(x[3 * i]) || !isfinite(x[3 * i + 1]) || !isfinite(x[3 * i + 2])) continue;
         int cx = (int)((x[3 * i] - x0) / cell), cy = (int)((x[3 * i + 1] - y0) / cell);
         double *h = &out[cy * nx + cx];
         if (x[3 * i + 2] > *h) *h = x[3 * i + 2];

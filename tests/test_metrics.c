@@ -256,6 +256,25 @@ static void test_no_fluid(const char *path)
           m.bodies[0].rest_time);
 }
 
+/* A run without a container where one particle has flown far (finite, 10^12 m away): the
+ * surface columns would be 10^13 wide; the metrics stay finite and do not crash. */
+static void test_far_particle(const char *path)
+{
+    char err[512];
+    stf_h5 *h;
+    CHECK(stf_h5_create(path, &h, err, sizeof err) == 0, "create: %s", err);
+    if (!h) return;
+    stf_h5_attr_double(h, "spacing", S);
+    static double x[3 * MAXP], v[3 * MAXP];
+    int n = surface(0, 0, x);
+    x[3 * (n - 1)] = 1e12;
+    CHECK(stf_h5_write_frame(h, 0.0, n, x, v, NULL, NULL) == 0, "frame");
+    CHECK(stf_h5_close(h, err, sizeof err) == 0, "close: %s", err);
+    stf_metrics m;
+    CHECK(stf_metrics_compute(path, &m, err, sizeof err) == 0, "metrics: %s", err);
+    CHECK(isfinite(m.finger_height) && m.finger_height >= 0, "finger_height %g", m.finger_height);
+}
+
 int main(void)
 {
     char path[] = "/tmp/stf_test_metricsXXXXXX";
@@ -268,6 +287,7 @@ int main(void)
     test_bounce_at_end(path);
     test_turned_slab(path);
     test_no_fluid(path);
+    test_far_particle(path);
     unlink(path);
     char xmf[sizeof path + 8];
     snprintf(xmf, sizeof xmf, "%s.xmf", path);
