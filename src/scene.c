@@ -1214,6 +1214,10 @@ static int apply_override(loader *L, int oi)
     for (int i = 0; i < n; i++) {
         if (!comps[i][0]) return override_fail(L, oi, o->key, "empty component in the key");
     }
+    if (n > 2 && !strcmp(comps[0], "expect")) { /* expect keys hold dots: fluid.escaped */
+        for (int i = 2; i < n; i++) comps[i][-1] = '.';
+        n = 2;
+    }
     struct fy_node *parent = NULL;
     if (walk_to_parent(L, oi, comps, n, &parent)) return SCENE_BAD;
     return o->value ? set_last(L, oi, parent, comps[n - 1])

@@ -380,6 +380,21 @@ static void test_overrides(void)
     }
     stf_scene_free(s);
 
+    /* an expect key holds dots itself (fluid.escaped, BODY.sink_time): everything after
+     * "expect." is the one key, so a prefixed expectation can be set and unset */
+    stf_override set_expect[] = {{"expect.fluid.escaped", "0"}, {"expect.time_end", "\"> 0\""}};
+    rc = stf_scene_load_string("m.yaml", min_scene, set_expect, 2, &s, err, sizeof err);
+    CHECK(rc == 0 && s && s->nexpect == 2 && !strcmp(s->expect[0].key, "fluid.escaped"),
+          "--set expect.fluid.escaped: %s", err);
+    stf_scene_free(s);
+    s = NULL;
+    stf_override unset_expect[] = {{"expect.fluid.escaped", NULL}};
+    rc = stf_scene_load_string("m.yaml", MIN_HEAD MIN_EFFECTS "expect:\n  fluid.escaped: 0\n  time_end: 1\n",
+                               unset_expect, 1, &s, err, sizeof err);
+    CHECK(rc == 0 && s && s->nexpect == 1 && !strcmp(s->expect[0].key, "time_end"),
+          "--unset expect.fluid.escaped: %s", err);
+    stf_scene_free(s);
+    s = NULL;
     stf_override bad_spacing[] = {{"fluid.spacing", "-1"}};
     rc = stf_scene_load_string("m.yaml", min_scene, bad_spacing, 1, &s, err, sizeof err);
     CHECK(rc == 2 && strstr(err, "--set fluid.spacing=-1: fluid.spacing: must be > 0") == err,
