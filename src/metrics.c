@@ -493,8 +493,12 @@ char *stf_metrics_json(const stf_metrics *m)
         put_field(&b, "float_duration", o->float_duration);
         put_field(&b, "rest_time", o->rest_time);
         put_field(&b, "rest_duration", o->rest_duration);
-        put(&b, ", \"final_position\": [%.9g, %.9g, %.9g]}", o->final_position[0],
-            o->final_position[1], o->final_position[2]);
+        put(&b, ", \"final_position\": [");
+        for (int a = 0; a < 3; a++) {
+            if (a) put(&b, ", ");
+            put_num(&b, o->final_position[a]); /* null, not the invalid nan */
+        }
+        put(&b, "]}");
     }
     put(&b, "},\n \"fluid\": {\"particles\": %ld, \"escaped\": %ld, \"max_speed\": ", m->particles,
         m->escaped);

@@ -11,6 +11,7 @@
 #include "test_util.h"
 
 #include <stdlib.h>
+#include <string.h>
 #include <unistd.h>
 
 enum { NC = 10, NPART = NC * NC }; /* a 10 x 10 grid of columns, one particle each */
@@ -275,6 +276,30 @@ static void test_far_particle(const char *path)
     CHECK(isfinite(m.finger_height) && m.finger_height >= 0, "finger_height %g", m.finger_height);
 }
 
+/* A body whose last row is not finite (a blown-up run): its final_position is JSON null, not
+ * the invalid token nan. */
+static void test_nan_body_json(const char *path)
+{
+    char err[512];
+    stf_h5 *h;
+    CHECK(stf_h5_create(path, &h, err, sizeof err) == 0, "create: %s", err);
+    if (!h) return;
+    stf_h5_attr_double(h, "spacing", S);
+    stf_h5_attr_double(h, "body.ball.half_height", 0.05);
+    static double x[3 * MAXP], v[3 * MAXP];
+    int n = surface(0, 0, x);
+    CHECK(stf_h5_write_frame(h, 0.0, n, x, v, NULL, NULL) == 0, "frame");
+    const double q[4] = {1, 0, 0, 0}, w[3] = {0}, f[3] = {0};
+    double pos[3] = {0, 0, NAN}, vel[3] = {0};
+    CHECK(stf_h5_body_append(h, "ball", 0.0, pos, q, vel, w, f) == 0, "row");
+    CHECK(stf_h5_close(h, err, sizeof err) == 0, "close: %s", err);
+    stf_metrics m;
+    CHECK(stf_metrics_compute(path, &m, err, sizeof err) == 0, "metrics: %s", err);
+    char *json = stf_metrics_json(&m);
+    CHECK(json && !strstr(json, "nan]") && !strstr(json, "nan,"), "JSON with nan: %s", json ? json : "");
+    free(json);
+}
+
 int main(void)
 {
     char path[] = "/tmp/stf_test_metricsXXXXXX";
@@ -288,6 +313,7 @@ int main(void)
     test_turned_slab(path);
     test_no_fluid(path);
     test_far_particle(path);
+    test_nan_body_json(path);
     unlink(path);
     char xmf[sizeof path + 8];
     snprintf(xmf, sizeof xmf, "%s.xmf", path);
