@@ -1071,6 +1071,13 @@ static int parse_scene(loader *L)
     if (get_num(L, &top, "frame_rate", R_POS, &s->frame_rate) < 0 ||
         get_num(L, &top, "bounce_min_rise", R_NONNEG, &s->bounce_min_rise) < 0)
         return SCENE_BAD;
+    if (s->frame_rate * s->dt > 1 + 1e-9) { /* a frame is written after a step at most */
+        char what[128];
+        int rate = has(&top, "frame_rate");
+        snprintf(what, sizeof what, "must be <= 1/%s = %g (one frame per step at most)",
+                 rate ? "dt" : "frame_rate", rate ? 1 / s->dt : 1 / s->frame_rate);
+        return fail_value(L, &top, rate ? "frame_rate" : "dt", what);
+    }
     s->fluid = stf_default_fluid_def();
     if (parse_fluid(L, &top) || parse_effects(L, &top) || parse_container(L, &top) ||
         check_blocks_inside(L) || parse_bodies(L, &top) || parse_expect(L, &top))

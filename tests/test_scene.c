@@ -312,6 +312,10 @@ static void test_errors(void)
                             i, i);
         EXPECT_ERROR(many, "t.yaml:27:", "bodies.16: at most 16 bodies");
     }
+    /* frames are written at most once per step: 2000 frames/s at dt = 1 ms would silently
+     * be 1000 */
+    EXPECT_ERROR(MIN_HEAD MIN_EFFECTS "frame_rate: 2000\n",
+                 "t.yaml:10:13: frame_rate: must be <= 1/dt", NULL);
     /* a body named fluid could not be named by an expectation (fluid.bounces is a fluid key) */
     EXPECT_ERROR(MIN_HEAD MIN_EFFECTS "bodies:\n  - {name: fluid, shape: sphere, radius: 1, mass: 1}\n",
                  "t.yaml:11:12: bodies.0.name: 'fluid' is reserved", NULL);
