@@ -516,7 +516,7 @@ static int parse_carreau_yasuda(loader *L, const mapv *p)
         get_num(L, p, "K", R_NONNEG, &c->K) < 0 || get_num(L, p, "alpha", R_POS, &c->alpha) < 0 ||
         get_num(L, p, "n", R_POS, &c->n) < 0 || get_num(L, p, "eta", R_OPEN_UNIT, &c->eta) < 0 ||
         get_num(L, p, "cg_tolerance", R_OPEN_UNIT, &c->cg_tolerance) < 0 ||
-        get_num(L, p, "cfl", R_OPEN_UNIT, &c->cfl) < 0 ||
+        get_num(L, p, "cfl", R_HALF_UNIT, &c->cfl) < 0 || /* 0: off */
         get_num(L, p, "dt_max", R_NONNEG, &c->dt_max) < 0 ||
         get_num(L, p, "warm_start", R_UNIT, &c->warm_start) < 0 ||
         get_num(L, p, "relaxation", R_UNIT, &c->relaxation) < 0)

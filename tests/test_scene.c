@@ -541,9 +541,23 @@ static void test_periodic(void)
     stf_scene_free(s);
 }
 
+/* effects.carreau_yasuda: cfl is 0 (off) or in (0,1) as documented. */
+static void test_cy_ranges(void)
+{
+#define CY_HEAD "duration: 1\nfluid:\n  model: carreau_yasuda\n  spacing: 0.01\n  blocks:\n" \
+                "    - {min: [0, 0, 0], max: [0.1, 0.1, 0.1]}\neffects:\n  carreau_yasuda:\n"
+    char err[512] = "";
+    stf_scene *s = NULL;
+    int rc = stf_scene_load_string("t.yaml", CY_HEAD "    cfl: 0\n", NULL, 0, &s, err, sizeof err);
+    CHECK(rc == 0 && s && s->fluid.cy.cfl == 0, "cfl: 0 (off): %s", err);
+    stf_scene_free(s);
+#undef CY_HEAD
+}
+
 int main(void)
 {
     test_periodic();
+    test_cy_ranges();
     test_ball_block();
     test_full();
     test_defaults();
