@@ -521,6 +521,8 @@ static int parse_carreau_yasuda(loader *L, const mapv *p)
         get_num(L, p, "warm_start", R_UNIT, &c->warm_start) < 0 ||
         get_num(L, p, "relaxation", R_UNIT, &c->relaxation) < 0)
         return SCENE_BAD;
+    if (c->dt_max > 0 && !(c->cfl > 0)) /* the fluid refuses it too, naming no place */
+        return fail_key(L, p, "dt_max", "only with cfl (> 0)");
     if ((r = get_int(L, p, "min_pressure_iterations", 1, 10000, &it)) < 0) return SCENE_BAD;
     if (r) c->min_pressure_iterations = (int)it;
     if ((r = get_int(L, p, "max_pressure_iterations", 1, 10000, &it)) < 0) return SCENE_BAD;

@@ -541,7 +541,8 @@ static void test_periodic(void)
     stf_scene_free(s);
 }
 
-/* effects.carreau_yasuda: cfl is 0 (off) or in (0,1) as documented. */
+/* effects.carreau_yasuda: cfl is 0 (off) or in (0,1) as documented; dt_max only with cfl,
+ * refused at its place in the file (the fluid's own check names no place). */
 static void test_cy_ranges(void)
 {
 #define CY_HEAD "duration: 1\nfluid:\n  model: carreau_yasuda\n  spacing: 0.01\n  blocks:\n" \
@@ -551,6 +552,8 @@ static void test_cy_ranges(void)
     int rc = stf_scene_load_string("t.yaml", CY_HEAD "    cfl: 0\n", NULL, 0, &s, err, sizeof err);
     CHECK(rc == 0 && s && s->fluid.cy.cfl == 0, "cfl: 0 (off): %s", err);
     stf_scene_free(s);
+    EXPECT_ERROR(CY_HEAD "    dt_max: 0.001\n",
+                 "t.yaml:9:5: effects.carreau_yasuda.dt_max: only with cfl", NULL);
 #undef CY_HEAD
 }
 
