@@ -501,6 +501,13 @@ static int parse_history(loader *L, const mapv *h)
     if (rt && f->history_mode != STF_HISTORY_SOE)
         return fail_key(L, h, "terms", "only with mode: soe");
     if (rt) f->terms = (int)terms;
+    double steps = rm ? f->memory / L->s->dt : 1; /* the window is d = round(memory / dt) */
+    if (f->history_mode == STF_HISTORY_WINDOW && !(steps >= 0.5 && steps < 100000.5)) {
+        char what[160];
+        snprintf(what, sizeof what, "must be in [0.5 dt, 100000.5 dt] = [%g, %g] s (d = "
+                 "round(memory / dt) steps, 1 .. 100000)", 0.5 * L->s->dt, 100000.5 * L->s->dt);
+        return fail_value(L, h, "memory", what);
+    }
     return 0;
 }
 

@@ -276,6 +276,11 @@ static void test_errors(void)
                  "t.yaml:9:16: effects.history.d: expected an integer", NULL);
     EXPECT_ERROR(MIN_HEAD "effects:\n  springs: {}\n  history: {d: 10, memory: 0.1}\n",
                  "t.yaml:9:20: effects.history.memory:", NULL);
+    /* memory is d = round(memory / dt) steps: below half a step it was silently 1 step */
+    EXPECT_ERROR(MIN_HEAD "effects:\n  springs: {}\n  history: {memory: 0.0001}\n",
+                 "t.yaml:9:21: effects.history.memory: must be in [0.5 dt", NULL);
+    EXPECT_ERROR(MIN_HEAD "effects:\n  springs: {}\n  history: {memory: 1e6}\n",
+                 "t.yaml:9:21: effects.history.memory: must be in [0.5 dt", NULL);
     EXPECT_ERROR(MIN_HEAD "effects:\n  history: {}\n",
                  "t.yaml:8:3: effects.history: needs effects.springs", NULL);
     EXPECT_ERROR(MIN_HEAD "effects: {}\ngravity: [0, 0, 1]\n", "t.yaml:8:1: gravity: unknown key",
