@@ -917,6 +917,10 @@ static int parse_body(loader *L, struct fy_node *item, int i, int *first)
         get_bool(L, &m, "stick", &b->shape.stick) < 0)
         return SCENE_BAD;
     if (r && normalise(b->quaternion, 4)) return fail_value(L, &m, "rotation", "must be non-zero");
+    static const char *const moving[] = {"velocity", "angular_velocity"};
+    for (int j = 0; j < 2 && b->motion == STF_MOTION_STATIC; j++) /* it would move with it */
+        if (has(&m, moving[j]))
+            return fail_key(L, &m, moving[j], "not with motion: static (a moving body is kinematic)");
     return parse_vibration(L, &m, b->motion, &b->vibration);
 }
 

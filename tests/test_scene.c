@@ -321,6 +321,13 @@ static void test_errors(void)
      * be 1000 */
     EXPECT_ERROR(MIN_HEAD MIN_EFFECTS "frame_rate: 2000\n",
                  "t.yaml:10:13: frame_rate: must be <= 1/dt", NULL);
+    /* a static body given a velocity moved with it (1 cm in 10 ms at 1 m/s) */
+    EXPECT_ERROR(MIN_HEAD MIN_EFFECTS "bodies:\n  - {name: a, shape: sphere, radius: 1, motion: static, "
+                                      "velocity: [1, 0, 0]}\n",
+                 "t.yaml:11:", "bodies.0.velocity: not with motion: static");
+    EXPECT_ERROR(MIN_HEAD MIN_EFFECTS "bodies:\n  - {name: a, shape: sphere, radius: 1, motion: static, "
+                                      "angular_velocity: [0, 0, 1]}\n",
+                 "t.yaml:11:", "bodies.0.angular_velocity: not with motion: static");
     /* a body named fluid could not be named by an expectation (fluid.bounces is a fluid key) */
     EXPECT_ERROR(MIN_HEAD MIN_EFFECTS "bodies:\n  - {name: fluid, shape: sphere, radius: 1, mass: 1}\n",
                  "t.yaml:11:12: bodies.0.name: 'fluid' is reserved", NULL);
