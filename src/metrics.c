@@ -20,6 +20,31 @@ static double attr_or(const stf_h5r *r, const char *name, double dflt)
     return stf_h5r_attr_double(r, name, &v) == 0 ? v : dflt;
 }
 
+/* A body's shape from its "body.NAME.shape" attribute ("sphere R", "box HX HY HZ",
+ * "capsule R HL", "cylinder R HL": radius, half extents, half length along local z). */
+typedef struct body_shape {
+    char kind[16];
+    double a[3];
+} body_shape;
+
+/* How far the body reaches below (*below) and above (*above) its centre at orientation q
+ * (w, x, y, z): the support of the shape along -z and +z of the world. */
+static void shape_reach(const body_shape *s, const double *q, double *below, double *above)
+{
+    double w = q[0], x = q[1], y = q[2], z = q[3];
+    double n = w * w + x * x + y * y + z * z;
+    if (!(n > 0)) w = 1, x = y = z = 0, n = 1;
+    /* the world z row of the rotation matrix: world z of the body's axes */
+    double r0 = 2 * (x * z - w * y) / n, r1 = 2 * (y * z + w * x) / n, r2 = 1 - 2 * (x * x + y * y) / n;
+    double h = 0;
+    if (!strcmp(s->kind, "box")) h = fabs(r0) * s->a[0] + fabs(r1) * s->a[1] + fabs(r2) * s->a[2];
+    else if (!strcmp(s->kind, "capsule")) h = s->a[0] + fabs(r2) * s->a[1];
+    else if (!strcmp(s->kind, "cylinder"))
+        h = fabs(r2) * s->a[1] + s->a[0] * sqrt(fmax(0, 1 - fmin(1, r2 * r2)));
+    else h = s->a[0]; /* sphere */
+    *below = *above = h;
+}
+
 static void body_metrics(const stf_h5r *r, const char *name, double surface,
                          const run_geometry *g, stf_body_metrics *b)
 {
@@ -30,15 +55,22 @@ static void body_metrics(const stf_h5r *r, const char *name, double surface,
     char key[128];
     snprintf(key, sizeof key, "body.%s.half_height", name);
     double hh = attr_or(r, key, 0.0);
-    double *t = NULL, *p = NULL, *v = NULL;
-    int n = stf_h5r_body_series(r, name, &t, &p, NULL, &v, NULL, NULL);
+    snprintf(key, sizeof key, "body.%s.shape", name); /* the reach follows the orientation */
+    char *shape_text = stf_h5r_attr_string(r, key);
+    body_shape shape = {{0}, {0, 0, 0}};
+    int oriented = shape_text && sscanf(shape_text, "%15s %lf %lf %lf", shape.kind, &shape.a[0],
+                                        &shape.a[1], &shape.a[2]) >= 2;
+    free(shape_text);
+    double *t = NULL, *p = NULL, *v = NULL, *qs = NULL;
+    int n = stf_h5r_body_series(r, name, &t, &p, &qs, &v, NULL, NULL);
     if (n <= 0) goto done;
     int contact = -1, descending = 1;
     double zmin = 0, zmax = 0;
     for (int i = 0; i < n; i++) {
-        double z = p[3 * i + 2];
+        double z = p[3 * i + 2], below = hh, above = hh;
+        if (oriented) shape_reach(&shape, qs + 4 * i, &below, &above);
         if (contact < 0) {
-            if (z - hh > surface + g->spacing) continue;
+            if (!(z - below <= surface + g->spacing)) continue; /* no fluid (NaN): never */
             contact = i;
             b->first_contact_time = t[i];
             zmin = zmax = z;
@@ -47,7 +79,7 @@ static void body_metrics(const stf_h5r *r, const char *name, double surface,
             double dx = p[3 * i] - p[3 * i - 3], dy = p[3 * i + 1] - p[3 * i - 2];
             b->roll_distance += sqrt(dx * dx + dy * dy);
         }
-        if (isnan(b->sink_time) && z + hh < surface) b->sink_time = t[i];
+        if (isnan(b->sink_time) && z + above < surface) b->sink_time = t[i];
         if (!isnan(b->sink_time)) continue; /* under the surface: a rise is not a bounce */
         if (descending) {
             if (z < zmin) zmin = z;
@@ -55,6 +87,7 @@ static void body_metrics(const stf_h5r *r, const char *name, double surface,
                 b->bounces++;
                 descending = 0;
                 zmax = z;
+                if (zmax - zmin > b->max_rebound_height) b->max_rebound_height = zmax - zmin;
             }
         } else {
             if (z > zmax) zmax = z;
@@ -85,6 +118,7 @@ done:
     free(t);
     free(p);
     free(v);
+    free(qs);
 }
 
 /* Column heights of a frame on a 2-spacing grid; returns the number of columns filled. */
@@ -96,10 +130,12 @@ static int column_heights(const double *x, int n, double cell, double *out, int 
         x0 = fmin(x0, x[3 * i]), x1 = fmax(x1, x[3 * i]);
         y0 = fmin(y0, x[3 * i + 1]), y1 = fmax(y1, x[3 * i + 1]);
     }
-    int nx = (int)((x1 - x0) / cell) + 1, ny = (int)((y1 - y0) / cell) + 1;
-    if ((long)nx * ny > maxcols) return 0;
+    double fx = floor((x1 - x0) / cell) + 1, fy = floor((y1 - y0) / cell) + 1;
+    if (!(fx * fy <= maxcols)) return 0; /* also a particle flown far, or no finite one */
+    int nx = (int)fx, ny = (int)fy;
     for (int c = 0; c < nx * ny; c++) out[c] = -INFINITY;
     for (int i = 0; i < n; i++) {
+        if (!isfinite(x[3 * i]) || !isfinite(x[3 * i + 1]) || !isfinite(x[3 * i + 2])) continue;
         int cx = (int)((x[3 * i] - x0) / cell), cy = (int)((x[3 * i + 1] - y0) / cell);
         double *h = &out[cy * nx + cx];
         if (x[3 * i + 2] > *h) *h = x[3 * i + 2];
@@ -457,8 +493,12 @@ char *stf_metrics_json(const stf_metrics *m)
         put_field(&b, "float_duration", o->float_duration);
         put_field(&b, "rest_time", o->rest_time);
         put_field(&b, "rest_duration", o->rest_duration);
-        put(&b, ", \"final_position\": [%.9g, %.9g, %.9g]}", o->final_position[0],
-            o->final_position[1], o->final_position[2]);
+        put(&b, ", \"final_position\": [");
+        for (int a = 0; a < 3; a++) {
+            if (a) put(&b, ", ");
+            put_num(&b, o->final_position[a]); /* null, not the invalid nan */
+        }
+        put(&b, "]}");
     }
     put(&b, "},\n \"fluid\": {\"particles\": %ld, \"escaped\": %ld, \"max_speed\": ", m->particles,
         m->escaped);

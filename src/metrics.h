@@ -2,7 +2,9 @@
  *
  * Definitions (the one place they live):
  * - surface_height: top of the fluid at t = 0: the highest particle centre + spacing/2.
- * - contact: a body's lowest point (centre z - half_height) is within one spacing of
+ * - contact: a body's lowest point (centre z - half_height; with a "body.NAME.shape"
+ *   attribute, the shape's reach below its centre at the sample's orientation, so a box
+ *   or a cylinder lying on its side counts from its true underside) is within one spacing of
  *   surface_height. first_contact_time is the first body sample in contact.
  * - bounce: after first contact and before sink_time, the centre rises by at least
  *   bounce_min_rise above a local minimum; max_rebound_height is the largest such rise (local
@@ -10,7 +12,8 @@
  *   off the floor does not bounce.
  * - roll_distance: horizontal path length after first contact while the centre is above
  *   surface_height.
- * - sink_time: first time the body's top (centre z + half_height) is below surface_height;
+ * - sink_time: first time the body's top (centre z + half_height, or the oriented reach
+ *   above the centre as for contact) is below surface_height;
  *   float_duration = sink_time - first_contact_time.
  * - rest_time: the first time after first contact from which the body's speed stays below
  *   STF_REST_SPEED (0.05 m/s) until it sinks or the run ends (NAN if never);

@@ -6,6 +6,7 @@
  * offending node (such nodes carry the override's index as libfyaml node meta data).
  */
 #define _POSIX_C_SOURCE 200809L
+#include "metrics.h"
 #include "stf.h"
 
 #include <errno.h>
@@ -500,6 +501,13 @@ static int parse_history(loader *L, const mapv *h)
     if (rt && f->history_mode != STF_HISTORY_SOE)
         return fail_key(L, h, "terms", "only with mode: soe");
     if (rt) f->terms = (int)terms;
+    double steps = rm ? f->memory / L->s->dt : 1; /* the window is d = round(memory / dt) */
+    if (f->history_mode == STF_HISTORY_WINDOW && !(steps >= 0.5 && steps < 100000.5)) {
+        char what[160];
+        snprintf(what, sizeof what, "must be in [0.5 dt, 100000.5 dt] = [%g, %g] s (d = "
+                 "round(memory / dt) steps, 1 .. 100000)", 0.5 * L->s->dt, 100000.5 * L->s->dt);
+        return fail_value(L, h, "memory", what);
+    }
     return 0;
 }
 
@@ -515,11 +523,13 @@ static int parse_carreau_yasuda(loader *L, const mapv *p)
         get_num(L, p, "K", R_NONNEG, &c->K) < 0 || get_num(L, p, "alpha", R_POS, &c->alpha) < 0 ||
         get_num(L, p, "n", R_POS, &c->n) < 0 || get_num(L, p, "eta", R_OPEN_UNIT, &c->eta) < 0 ||
         get_num(L, p, "cg_tolerance", R_OPEN_UNIT, &c->cg_tolerance) < 0 ||
-        get_num(L, p, "cfl", R_OPEN_UNIT, &c->cfl) < 0 ||
+        get_num(L, p, "cfl", R_HALF_UNIT, &c->cfl) < 0 || /* 0: off */
         get_num(L, p, "dt_max", R_NONNEG, &c->dt_max) < 0 ||
         get_num(L, p, "warm_start", R_UNIT, &c->warm_start) < 0 ||
         get_num(L, p, "relaxation", R_UNIT, &c->relaxation) < 0)
         return SCENE_BAD;
+    if (c->dt_max > 0 && !(c->cfl > 0)) /* the fluid refuses it too, naming no place */
+        return fail_key(L, p, "dt_max", "only with cfl (> 0)");
     if ((r = get_int(L, p, "min_pressure_iterations", 1, 10000, &it)) < 0) return SCENE_BAD;
     if (r) c->min_pressure_iterations = (int)it;
     if ((r = get_int(L, p, "max_pressure_iterations", 1, 10000, &it)) < 0) return SCENE_BAD;
@@ -884,6 +894,8 @@ static int parse_body(loader *L, struct fy_node *item, int i, int *first)
     if (r <= 0) return r < 0 ? SCENE_BAD : missing(L, &m, "name", NULL);
     if (!valid_name(b->name))
         return fail_value(L, &m, "name", "must be non-empty and use only [A-Za-z0-9_]");
+    if (!strcmp(b->name, "fluid")) /* expect: fluid.KEY names the fluid's metrics */
+        return fail_value(L, &m, "name", "'fluid' is reserved (expect: fluid.KEY is a fluid metric)");
     for (int j = 0; j < i; j++) {
         if (strcmp(L->s->bodies[j].name, b->name)) continue;
         char what[160];
@@ -905,6 +917,10 @@ static int parse_body(loader *L, struct fy_node *item, int i, int *first)
         get_bool(L, &m, "stick", &b->shape.stick) < 0)
         return SCENE_BAD;
     if (r && normalise(b->quaternion, 4)) return fail_value(L, &m, "rotation", "must be non-zero");
+    static const char *const moving[] = {"velocity", "angular_velocity"};
+    for (int j = 0; j < 2 && b->motion == STF_MOTION_STATIC; j++) /* it would move with it */
+        if (has(&m, moving[j]))
+            return fail_key(L, &m, moving[j], "not with motion: static (a moving body is kinematic)");
     return parse_vibration(L, &m, b->motion, &b->vibration);
 }
 
@@ -914,6 +930,13 @@ static int parse_bodies(loader *L, const mapv *top)
     if (!k || is_null(v)) return 0;
     if (!fy_node_is_sequence(v)) return fail(L, v, k, "bodies", "expected a list of bodies");
     int n = fy_node_sequence_item_count(v);
+    if (n > STF_METRICS_MAX_BODIES) { /* the report and expect would miss the others */
+        char path[64], what[96];
+        snprintf(path, sizeof path, "bodies.%d", STF_METRICS_MAX_BODIES);
+        snprintf(what, sizeof what, "at most %d bodies (the run metrics hold that many)",
+                 STF_METRICS_MAX_BODIES);
+        return fail(L, fy_node_sequence_get_by_index(v, STF_METRICS_MAX_BODIES), k, path, "%s", what);
+    }
     int *first = calloc((size_t)n + 1, sizeof *first);
     L->s->bodies = calloc((size_t)n + 1, sizeof *L->s->bodies);
     if (!first || !L->s->bodies) {
@@ -1061,6 +1084,13 @@ static int parse_scene(loader *L)
     if (get_num(L, &top, "frame_rate", R_POS, &s->frame_rate) < 0 ||
         get_num(L, &top, "bounce_min_rise", R_NONNEG, &s->bounce_min_rise) < 0)
         return SCENE_BAD;
+    if (s->frame_rate * s->dt > 1 + 1e-9) { /* a frame is written after a step at most */
+        char what[128];
+        int rate = has(&top, "frame_rate");
+        snprintf(what, sizeof what, "must be <= 1/%s = %g (one frame per step at most)",
+                 rate ? "dt" : "frame_rate", rate ? 1 / s->dt : 1 / s->frame_rate);
+        return fail_value(L, &top, rate ? "frame_rate" : "dt", what);
+    }
     s->fluid = stf_default_fluid_def();
     if (parse_fluid(L, &top) || parse_effects(L, &top) || parse_container(L, &top) ||
         check_blocks_inside(L) || parse_bodies(L, &top) || parse_expect(L, &top))
@@ -1203,6 +1233,10 @@ static int apply_override(loader *L, int oi)
     }
     for (int i = 0; i < n; i++) {
         if (!comps[i][0]) return override_fail(L, oi, o->key, "empty component in the key");
+    }
+    if (n > 2 && !strcmp(comps[0], "expect")) { /* expect keys hold dots: fluid.escaped */
+        for (int i = 2; i < n; i++) comps[i][-1] = '.';
+        n = 2;
     }
     struct fy_node *parent = NULL;
     if (walk_to_parent(L, oi, comps, n, &parent)) return SCENE_BAD;

@@ -11,6 +11,7 @@
 #include "test_util.h"
 
 #include <stdlib.h>
+#include <string.h>
 #include <unistd.h>
 
 enum { NC = 10, NPART = NC * NC }; /* a 10 x 10 grid of columns, one particle each */
@@ -170,6 +171,135 @@ static void test_body(const char *path)
     CHECK_NEAR(b->rest_duration, 2.5, 1e-9, "rest_duration (to the end of the run)");
 }
 
+/* A body that touches and rises clearly (a bounce) in the run's last sample: the bounce is
+ * counted, so its rise is the max_rebound_height (not 0 with bounces 1). */
+static void test_bounce_at_end(const char *path)
+{
+    char err[512];
+    stf_h5 *h;
+    CHECK(stf_h5_create(path, &h, err, sizeof err) == 0, "create: %s", err);
+    if (!h) return;
+    stf_h5_attr_double(h, "spacing", S);
+    stf_h5_attr_double(h, "bounce_min_rise", 0.01);
+    stf_h5_attr_double(h, "body.ball.half_height", 0.1);
+    static double x[3 * MAXP], v[3 * MAXP];
+    int n = surface(0, 0, x);
+    CHECK(stf_h5_write_frame(h, 0.0, n, x, v, NULL, NULL) == 0, "frame");
+    const double q[4] = {1, 0, 0, 0}, w[3] = {0}, f[3] = {0}, zs[] = {0.16, 0.14, 0.12, 0.14};
+    for (int i = 0; i < 4; i++) {
+        double pos[3] = {0.1, 0.1, zs[i]}, vel[3] = {0, 0, 0};
+        CHECK(stf_h5_body_append(h, "ball", 0.01 * i, pos, q, vel, w, f) == 0, "row %d", i);
+    }
+    CHECK(stf_h5_close(h, err, sizeof err) == 0, "close: %s", err);
+    stf_metrics m;
+    CHECK(stf_metrics_compute(path, &m, err, sizeof err) == 0, "metrics: %s", err);
+    CHECK(m.nbodies == 1 && m.bodies[0].bounces == 1, "bounces %d", m.bodies[0].bounces);
+    CHECK_NEAR(m.bodies[0].max_rebound_height, 0.02, 1e-9, "max_rebound_height of a last-sample bounce");
+}
+
+/* A slab (box, half extents 0.03 x 0.005 x 0.005 m) turned 90 degrees about y: it stands
+ * 0.03 m below and above its centre, not its local half height 0.005 m. It comes down at
+ * 1 m/s from z = 0.202 over the surface at 0.055 m (samples every 5 ms): its underside is
+ * within a spacing at z <= 0.095 (t >= 0.107 s: the sample at 0.11 s), its top below the
+ * surface at z < 0.025 (t > 0.177 s: 0.18 s). */
+static void test_turned_slab(const char *path)
+{
+    char err[512];
+    stf_h5 *h;
+    CHECK(stf_h5_create(path, &h, err, sizeof err) == 0, "create: %s", err);
+    if (!h) return;
+    stf_h5_attr_double(h, "spacing", S);
+    stf_h5_attr_double(h, "body.slab.half_height", 0.005);
+    stf_h5_attr_string(h, "body.slab.shape", "box 0.03 0.005 0.005");
+    static double x[3 * MAXP], v[3 * MAXP];
+    int n = surface(0, 0, x);
+    CHECK(stf_h5_write_frame(h, 0.0, n, x, v, NULL, NULL) == 0, "frame");
+    const double q[4] = {sqrt(0.5), 0, sqrt(0.5), 0}, w[3] = {0}, f[3] = {0};
+    for (int i = 0; i <= 40; i++) {
+        double t = 0.005 * i, pos[3] = {0.1, 0.1, 0.202 - t}, vel[3] = {0, 0, -1};
+        CHECK(stf_h5_body_append(h, "slab", t, pos, q, vel, w, f) == 0, "row %d", i);
+    }
+    CHECK(stf_h5_close(h, err, sizeof err) == 0, "close: %s", err);
+    stf_metrics m;
+    CHECK(stf_metrics_compute(path, &m, err, sizeof err) == 0, "metrics: %s", err);
+    CHECK(m.nbodies == 1, "bodies %d", m.nbodies);
+    if (m.nbodies != 1) return;
+    CHECK_NEAR(m.bodies[0].first_contact_time, 0.11, 1e-9, "first_contact_time of the turned slab");
+    CHECK_NEAR(m.bodies[0].sink_time, 0.18, 1e-9, "sink_time of the turned slab");
+}
+
+/* No fluid (every particle removed at setup, inside the body): surface_height is null, and
+ * a body falling through the empty box never touches fluid nor rests on it. */
+static void test_no_fluid(const char *path)
+{
+    char err[512];
+    stf_h5 *h;
+    CHECK(stf_h5_create(path, &h, err, sizeof err) == 0, "create: %s", err);
+    if (!h) return;
+    stf_h5_attr_double(h, "spacing", S);
+    stf_h5_attr_double(h, "body.ball.half_height", 0.05);
+    double x[3] = {0}, v[3] = {0};
+    CHECK(stf_h5_write_frame(h, 0.0, 0, x, v, NULL, NULL) == 0, "frame");
+    const double q[4] = {1, 0, 0, 0}, w[3] = {0}, f[3] = {0};
+    for (int i = 0; i < 4; i++) {
+        double pos[3] = {0, 0, 0.1 - 0.0001 * i}, vel[3] = {0, 0, -0.01};
+        CHECK(stf_h5_body_append(h, "ball", 0.01 * i, pos, q, vel, w, f) == 0, "row %d", i);
+    }
+    CHECK(stf_h5_close(h, err, sizeof err) == 0, "close: %s", err);
+    stf_metrics m;
+    CHECK(stf_metrics_compute(path, &m, err, sizeof err) == 0, "metrics: %s", err);
+    CHECK(m.surface_height != m.surface_height, "surface_height %g without fluid", m.surface_height);
+    CHECK(m.nbodies == 1, "bodies %d", m.nbodies);
+    if (m.nbodies != 1) return;
+    CHECK(m.bodies[0].first_contact_time != m.bodies[0].first_contact_time,
+          "first_contact_time %g without fluid", m.bodies[0].first_contact_time);
+    CHECK(m.bodies[0].rest_time != m.bodies[0].rest_time, "rest_time %g without fluid",
+          m.bodies[0].rest_time);
+}
+
+/* A run without a container where one particle has flown far (finite, 10^12 m away): the
+ * surface columns would be 10^13 wide; the metrics stay finite and do not crash. */
+static void test_far_particle(const char *path)
+{
+    char err[512];
+    stf_h5 *h;
+    CHECK(stf_h5_create(path, &h, err, sizeof err) == 0, "create: %s", err);
+    if (!h) return;
+    stf_h5_attr_double(h, "spacing", S);
+    static double x[3 * MAXP], v[3 * MAXP];
+    int n = surface(0, 0, x);
+    x[3 * (n - 1)] = 1e12;
+    CHECK(stf_h5_write_frame(h, 0.0, n, x, v, NULL, NULL) == 0, "frame");
+    CHECK(stf_h5_close(h, err, sizeof err) == 0, "close: %s", err);
+    stf_metrics m;
+    CHECK(stf_metrics_compute(path, &m, err, sizeof err) == 0, "metrics: %s", err);
+    CHECK(isfinite(m.finger_height) && m.finger_height >= 0, "finger_height %g", m.finger_height);
+}
+
+/* A body whose last row is not finite (a blown-up run): its final_position is JSON null, not
+ * the invalid token nan. */
+static void test_nan_body_json(const char *path)
+{
+    char err[512];
+    stf_h5 *h;
+    CHECK(stf_h5_create(path, &h, err, sizeof err) == 0, "create: %s", err);
+    if (!h) return;
+    stf_h5_attr_double(h, "spacing", S);
+    stf_h5_attr_double(h, "body.ball.half_height", 0.05);
+    static double x[3 * MAXP], v[3 * MAXP];
+    int n = surface(0, 0, x);
+    CHECK(stf_h5_write_frame(h, 0.0, n, x, v, NULL, NULL) == 0, "frame");
+    const double q[4] = {1, 0, 0, 0}, w[3] = {0}, f[3] = {0};
+    double pos[3] = {0, 0, NAN}, vel[3] = {0};
+    CHECK(stf_h5_body_append(h, "ball", 0.0, pos, q, vel, w, f) == 0, "row");
+    CHECK(stf_h5_close(h, err, sizeof err) == 0, "close: %s", err);
+    stf_metrics m;
+    CHECK(stf_metrics_compute(path, &m, err, sizeof err) == 0, "metrics: %s", err);
+    char *json = stf_metrics_json(&m);
+    CHECK(json && !strstr(json, "nan]") && !strstr(json, "nan,"), "JSON with nan: %s", json ? json : "");
+    free(json);
+}
+
 int main(void)
 {
     char path[] = "/tmp/stf_test_metricsXXXXXX";
@@ -179,6 +309,11 @@ int main(void)
     test_finger_height(path);
     test_drop(path);
     test_body(path);
+    test_bounce_at_end(path);
+    test_turned_slab(path);
+    test_no_fluid(path);
+    test_far_particle(path);
+    test_nan_body_json(path);
     unlink(path);
     char xmf[sizeof path + 8];
     snprintf(xmf, sizeof xmf, "%s.xmf", path);

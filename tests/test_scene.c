@@ -276,6 +276,11 @@ static void test_errors(void)
                  "t.yaml:9:16: effects.history.d: expected an integer", NULL);
     EXPECT_ERROR(MIN_HEAD "effects:\n  springs: {}\n  history: {d: 10, memory: 0.1}\n",
                  "t.yaml:9:20: effects.history.memory:", NULL);
+    /* memory is d = round(memory / dt) steps: below half a step it was silently 1 step */
+    EXPECT_ERROR(MIN_HEAD "effects:\n  springs: {}\n  history: {memory: 0.0001}\n",
+                 "t.yaml:9:21: effects.history.memory: must be in [0.5 dt", NULL);
+    EXPECT_ERROR(MIN_HEAD "effects:\n  springs: {}\n  history: {memory: 1e6}\n",
+                 "t.yaml:9:21: effects.history.memory: must be in [0.5 dt", NULL);
     EXPECT_ERROR(MIN_HEAD "effects:\n  history: {}\n",
                  "t.yaml:8:3: effects.history: needs effects.springs", NULL);
     EXPECT_ERROR(MIN_HEAD "effects: {}\ngravity: [0, 0, 1]\n", "t.yaml:8:1: gravity: unknown key",
@@ -303,6 +308,29 @@ static void test_errors(void)
     EXPECT_ERROR(MIN_HEAD MIN_EFFECTS "bodies:\n  - {name: a, shape: sphere, radius: 1, mass: 1}\n"
                                       "  - {name: a, shape: sphere, radius: 1, mass: 1}\n",
                  "t.yaml:12:12: bodies.1.name: duplicate body name", NULL);
+    {   /* the metrics hold 16 bodies: a 17th would be missing from the report and expect */
+        static char many[4096];
+        int len = snprintf(many, sizeof many, "%s", MIN_HEAD MIN_EFFECTS "bodies:\n");
+        for (int i = 0; i < 17; i++)
+            len += snprintf(many + len, sizeof many - (size_t)len,
+                            "  - {name: b%d, shape: sphere, radius: 0.01, mass: 1, position: [%d, 0, 1]}\n",
+                            i, i);
+        EXPECT_ERROR(many, "t.yaml:27:", "bodies.16: at most 16 bodies");
+    }
+    /* frames are written at most once per step: 2000 frames/s at dt = 1 ms would silently
+     * be 1000 */
+    EXPECT_ERROR(MIN_HEAD MIN_EFFECTS "frame_rate: 2000\n",
+                 "t.yaml:10:13: frame_rate: must be <= 1/dt", NULL);
+    /* a static body given a velocity moved with it (1 cm in 10 ms at 1 m/s) */
+    EXPECT_ERROR(MIN_HEAD MIN_EFFECTS "bodies:\n  - {name: a, shape: sphere, radius: 1, motion: static, "
+                                      "velocity: [1, 0, 0]}\n",
+                 "t.yaml:11:", "bodies.0.velocity: not with motion: static");
+    EXPECT_ERROR(MIN_HEAD MIN_EFFECTS "bodies:\n  - {name: a, shape: sphere, radius: 1, motion: static, "
+                                      "angular_velocity: [0, 0, 1]}\n",
+                 "t.yaml:11:", "bodies.0.angular_velocity: not with motion: static");
+    /* a body named fluid could not be named by an expectation (fluid.bounces is a fluid key) */
+    EXPECT_ERROR(MIN_HEAD MIN_EFFECTS "bodies:\n  - {name: fluid, shape: sphere, radius: 1, mass: 1}\n",
+                 "t.yaml:11:12: bodies.0.name: 'fluid' is reserved", NULL);
     EXPECT_ERROR(MIN_HEAD MIN_EFFECTS
                  "bodies:\n  - {name: a, shape: sphere, radius: 1, mass: 1, density: 2}\n",
                  "bodies.0.density: give either mass or density", NULL);
@@ -368,6 +396,21 @@ static void test_overrides(void)
     }
     stf_scene_free(s);
 
+    /* an expect key holds dots itself (fluid.escaped, BODY.sink_time): everything after
+     * "expect." is the one key, so a prefixed expectation can be set and unset */
+    stf_override set_expect[] = {{"expect.fluid.escaped", "0"}, {"expect.time_end", "\"> 0\""}};
+    rc = stf_scene_load_string("m.yaml", min_scene, set_expect, 2, &s, err, sizeof err);
+    CHECK(rc == 0 && s && s->nexpect == 2 && !strcmp(s->expect[0].key, "fluid.escaped"),
+          "--set expect.fluid.escaped: %s", err);
+    stf_scene_free(s);
+    s = NULL;
+    stf_override unset_expect[] = {{"expect.fluid.escaped", NULL}};
+    rc = stf_scene_load_string("m.yaml", MIN_HEAD MIN_EFFECTS "expect:\n  fluid.escaped: 0\n  time_end: 1\n",
+                               unset_expect, 1, &s, err, sizeof err);
+    CHECK(rc == 0 && s && s->nexpect == 1 && !strcmp(s->expect[0].key, "time_end"),
+          "--unset expect.fluid.escaped: %s", err);
+    stf_scene_free(s);
+    s = NULL;
     stf_override bad_spacing[] = {{"fluid.spacing", "-1"}};
     rc = stf_scene_load_string("m.yaml", min_scene, bad_spacing, 1, &s, err, sizeof err);
     CHECK(rc == 2 && strstr(err, "--set fluid.spacing=-1: fluid.spacing: must be > 0") == err,
@@ -510,9 +553,26 @@ static void test_periodic(void)
     stf_scene_free(s);
 }
 
+/* effects.carreau_yasuda: cfl is 0 (off) or in (0,1) as documented; dt_max only with cfl,
+ * refused at its place in the file (the fluid's own check names no place). */
+static void test_cy_ranges(void)
+{
+#define CY_HEAD "duration: 1\nfluid:\n  model: carreau_yasuda\n  spacing: 0.01\n  blocks:\n" \
+                "    - {min: [0, 0, 0], max: [0.1, 0.1, 0.1]}\neffects:\n  carreau_yasuda:\n"
+    char err[512] = "";
+    stf_scene *s = NULL;
+    int rc = stf_scene_load_string("t.yaml", CY_HEAD "    cfl: 0\n", NULL, 0, &s, err, sizeof err);
+    CHECK(rc == 0 && s && s->fluid.cy.cfl == 0, "cfl: 0 (off): %s", err);
+    stf_scene_free(s);
+    EXPECT_ERROR(CY_HEAD "    dt_max: 0.001\n",
+                 "t.yaml:9:5: effects.carreau_yasuda.dt_max: only with cfl", NULL);
+#undef CY_HEAD
+}
+
 int main(void)
 {
     test_periodic();
+    test_cy_ranges();
     test_ball_block();
     test_full();
     test_defaults();

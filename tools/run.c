@@ -161,6 +161,18 @@ static int write_header(stf_h5 *h, const stf_sim *sim, double duration)
                                                          : b->shape.radius + b->shape.half_length;
         snprintf(key, sizeof key, "body.%s.half_height", b->name);
         rc |= stf_h5_attr_double(h, key, hh);
+        char shape[160] = ""; /* metrics: the reach below and above the centre follows q */
+        if (b->shape.shape == STF_SHAPE_BOX)
+            snprintf(shape, sizeof shape, "box %.17g %.17g %.17g", b->shape.half[0], b->shape.half[1],
+                     b->shape.half[2]);
+        else if (b->shape.shape == STF_SHAPE_SPHERE)
+            snprintf(shape, sizeof shape, "sphere %.17g", b->shape.radius);
+        else if (b->shape.shape == STF_SHAPE_CAPSULE || b->shape.shape == STF_SHAPE_CYLINDER)
+            snprintf(shape, sizeof shape, "%s %.17g %.17g",
+                     b->shape.shape == STF_SHAPE_CAPSULE ? "capsule" : "cylinder", b->shape.radius,
+                     b->shape.half_length);
+        snprintf(key, sizeof key, "body.%s.shape", b->name);
+        if (shape[0]) rc |= stf_h5_attr_string(h, key, shape);
         if (k == 0) rc |= stf_h5_attr_string(h, "first_body", b->name);
     }
     return rc;
