@@ -45,21 +45,35 @@ static int surface(int fingers, int drops, double *x)
     return n;
 }
 
+/* A new output file with the lattice spacing S (NULL, reported, when it cannot be made). */
+static stf_h5 *new_file(const char *path)
+{
+    char err[512];
+    stf_h5 *h = NULL;
+    CHECK(stf_h5_create(path, &h, err, sizeof err) == 0, "create: %s", err);
+    if (h) stf_h5_attr_double(h, "spacing", S);
+    return h;
+}
+
+/* Closes the file and reads its metrics back into m. */
+static void close_and_measure(stf_h5 *h, const char *path, stf_metrics *m)
+{
+    char err[512];
+    CHECK(stf_h5_close(h, err, sizeof err) == 0, "close: %s", err);
+    CHECK(stf_metrics_compute(path, m, err, sizeof err) == 0, "metrics: %s", err);
+}
+
 /* Four frames: 0-1 flat, 2-3 with fingers (the second half, which counts) and drops. */
 static void finger_run(const char *path, int drops, stf_metrics *m)
 {
-    char err[512];
-    stf_h5 *h;
-    CHECK(stf_h5_create(path, &h, err, sizeof err) == 0, "create: %s", err);
+    stf_h5 *h = new_file(path);
     if (!h) return;
-    stf_h5_attr_double(h, "spacing", S);
     static double x[3 * MAXP], v[3 * MAXP];
     for (int f = 0; f < 4; f++) {
         int n = surface(f >= 2, f >= 2 ? drops : 0, x);
         CHECK(stf_h5_write_frame(h, 0.1 * f, n, x, v, NULL, NULL) == 0, "frame %d", f);
     }
-    CHECK(stf_h5_close(h, err, sizeof err) == 0, "close: %s", err);
-    CHECK(stf_metrics_compute(path, m, err, sizeof err) == 0, "metrics: %s", err);
+    close_and_measure(h, path, m);
 }
 
 static void test_finger_height(const char *path)
@@ -96,19 +110,15 @@ static void test_drop(const char *path)
     static const double com[] = {1.0, 0.9, 0.7, 0.4, 0.5, 0.45, 0.42, 0.41};
     static const double vz[] = {-0.5, -1.5, -2.5, -0.5, 0.4, -0.2, -0.1, 0.0};
     static const double scale[] = {1.0, 1.0, 1.0, 1.0, 1.2, 1.4, 1.6, 1.8};
-    char err[512];
-    stf_h5 *h;
-    CHECK(stf_h5_create(path, &h, err, sizeof err) == 0, "create: %s", err);
+    stf_h5 *h = new_file(path);
     if (!h) return;
-    stf_h5_attr_double(h, "spacing", S);
     double x[3 * NPART], v[3 * NPART];
     for (int f = 0; f < 8; f++) {
         ball(com[f], scale[f], vz[f], x, v);
         CHECK(stf_h5_write_frame(h, 0.1 * f, NPART, x, v, NULL, NULL) == 0, "frame %d", f);
     }
-    CHECK(stf_h5_close(h, err, sizeof err) == 0, "close: %s", err);
     stf_metrics m;
-    CHECK(stf_metrics_compute(path, &m, err, sizeof err) == 0, "metrics: %s", err);
+    close_and_measure(h, path, &m);
     CHECK_NEAR(m.impact_time, 0.3, 1e-12, "impact_time");
     CHECK_NEAR(m.solid_duration, 0.3, 1e-12, "solid_duration (1.6 > 1.5 at 0.6 s)");
     CHECK_NEAR(m.com_rebound_height, 0.1, 1e-6, "com_rebound_height");
@@ -131,11 +141,8 @@ static void test_drop(const char *path)
  * than STF_REST_SPEED) until its top passes below the surface. Every metric is known. */
 static void test_body(const char *path)
 {
-    char err[512];
-    stf_h5 *h;
-    CHECK(stf_h5_create(path, &h, err, sizeof err) == 0, "create: %s", err);
+    stf_h5 *h = new_file(path);
     if (!h) return;
-    stf_h5_attr_double(h, "spacing", S);
     stf_h5_attr_double(h, "bounce_min_rise", 0.01);
     stf_h5_attr_double(h, "body.ball.half_height", 0.1);
     static double x[3 * MAXP], v[3 * MAXP];
@@ -154,9 +161,8 @@ static void test_body(const char *path)
         CHECK(stf_h5_body_append(h, "ball", t, pos, q, vel, w, f) == 0, "body row %d", i);
         z += vz * dt;
     }
-    CHECK(stf_h5_close(h, err, sizeof err) == 0, "close: %s", err);
     stf_metrics m;
-    CHECK(stf_metrics_compute(path, &m, err, sizeof err) == 0, "metrics: %s", err);
+    close_and_measure(h, path, &m);
     CHECK(m.nbodies == 1, "bodies %d", m.nbodies);
     if (m.nbodies != 1) return;
     const stf_body_metrics *b = &m.bodies[0];
@@ -175,11 +181,8 @@ static void test_body(const char *path)
  * counted, so its rise is the max_rebound_height (not 0 with bounces 1). */
 static void test_bounce_at_end(const char *path)
 {
-    char err[512];
-    stf_h5 *h;
-    CHECK(stf_h5_create(path, &h, err, sizeof err) == 0, "create: %s", err);
+    stf_h5 *h = new_file(path);
     if (!h) return;
-    stf_h5_attr_double(h, "spacing", S);
     stf_h5_attr_double(h, "bounce_min_rise", 0.01);
     stf_h5_attr_double(h, "body.ball.half_height", 0.1);
     static double x[3 * MAXP], v[3 * MAXP];
@@ -190,9 +193,8 @@ static void test_bounce_at_end(const char *path)
         double pos[3] = {0.1, 0.1, zs[i]}, vel[3] = {0, 0, 0};
         CHECK(stf_h5_body_append(h, "ball", 0.01 * i, pos, q, vel, w, f) == 0, "row %d", i);
     }
-    CHECK(stf_h5_close(h, err, sizeof err) == 0, "close: %s", err);
     stf_metrics m;
-    CHECK(stf_metrics_compute(path, &m, err, sizeof err) == 0, "metrics: %s", err);
+    close_and_measure(h, path, &m);
     CHECK(m.nbodies == 1 && m.bodies[0].bounces == 1, "bounces %d", m.bodies[0].bounces);
     CHECK_NEAR(m.bodies[0].max_rebound_height, 0.02, 1e-9, "max_rebound_height of a last-sample bounce");
 }
@@ -204,11 +206,8 @@ static void test_bounce_at_end(const char *path)
  * surface at z < 0.025 (t > 0.177 s: 0.18 s). */
 static void test_turned_slab(const char *path)
 {
-    char err[512];
-    stf_h5 *h;
-    CHECK(stf_h5_create(path, &h, err, sizeof err) == 0, "create: %s", err);
+    stf_h5 *h = new_file(path);
     if (!h) return;
-    stf_h5_attr_double(h, "spacing", S);
     stf_h5_attr_double(h, "body.slab.half_height", 0.005);
     stf_h5_attr_string(h, "body.slab.shape", "box 0.03 0.005 0.005");
     static double x[3 * MAXP], v[3 * MAXP];
@@ -219,9 +218,8 @@ static void test_turned_slab(const char *path)
         double t = 0.005 * i, pos[3] = {0.1, 0.1, 0.202 - t}, vel[3] = {0, 0, -1};
         CHECK(stf_h5_body_append(h, "slab", t, pos, q, vel, w, f) == 0, "row %d", i);
     }
-    CHECK(stf_h5_close(h, err, sizeof err) == 0, "close: %s", err);
     stf_metrics m;
-    CHECK(stf_metrics_compute(path, &m, err, sizeof err) == 0, "metrics: %s", err);
+    close_and_measure(h, path, &m);
     CHECK(m.nbodies == 1, "bodies %d", m.nbodies);
     if (m.nbodies != 1) return;
     CHECK_NEAR(m.bodies[0].first_contact_time, 0.11, 1e-9, "first_contact_time of the turned slab");
@@ -232,11 +230,8 @@ static void test_turned_slab(const char *path)
  * a body falling through the empty box never touches fluid nor rests on it. */
 static void test_no_fluid(const char *path)
 {
-    char err[512];
-    stf_h5 *h;
-    CHECK(stf_h5_create(path, &h, err, sizeof err) == 0, "create: %s", err);
+    stf_h5 *h = new_file(path);
     if (!h) return;
-    stf_h5_attr_double(h, "spacing", S);
     stf_h5_attr_double(h, "body.ball.half_height", 0.05);
     double x[3] = {0}, v[3] = {0};
     CHECK(stf_h5_write_frame(h, 0.0, 0, x, v, NULL, NULL) == 0, "frame");
@@ -245,9 +240,8 @@ static void test_no_fluid(const char *path)
         double pos[3] = {0, 0, 0.1 - 0.0001 * i}, vel[3] = {0, 0, -0.01};
         CHECK(stf_h5_body_append(h, "ball", 0.01 * i, pos, q, vel, w, f) == 0, "row %d", i);
     }
-    CHECK(stf_h5_close(h, err, sizeof err) == 0, "close: %s", err);
     stf_metrics m;
-    CHECK(stf_metrics_compute(path, &m, err, sizeof err) == 0, "metrics: %s", err);
+    close_and_measure(h, path, &m);
     CHECK(m.surface_height != m.surface_height, "surface_height %g without fluid", m.surface_height);
     CHECK(m.nbodies == 1, "bodies %d", m.nbodies);
     if (m.nbodies != 1) return;
@@ -261,18 +255,14 @@ static void test_no_fluid(const char *path)
  * surface columns would be 10^13 wide; the metrics stay finite and do not crash. */
 static void test_far_particle(const char *path)
 {
-    char err[512];
-    stf_h5 *h;
-    CHECK(stf_h5_create(path, &h, err, sizeof err) == 0, "create: %s", err);
+    stf_h5 *h = new_file(path);
     if (!h) return;
-    stf_h5_attr_double(h, "spacing", S);
     static double x[3 * MAXP], v[3 * MAXP];
     int n = surface(0, 0, x);
     x[3 * (n - 1)] = 1e12;
     CHECK(stf_h5_write_frame(h, 0.0, n, x, v, NULL, NULL) == 0, "frame");
-    CHECK(stf_h5_close(h, err, sizeof err) == 0, "close: %s", err);
     stf_metrics m;
-    CHECK(stf_metrics_compute(path, &m, err, sizeof err) == 0, "metrics: %s", err);
+    close_and_measure(h, path, &m);
     CHECK(isfinite(m.finger_height) && m.finger_height >= 0, "finger_height %g", m.finger_height);
 }
 
@@ -280,11 +270,8 @@ static void test_far_particle(const char *path)
  * the invalid token nan. */
 static void test_nan_body_json(const char *path)
 {
-    char err[512];
-    stf_h5 *h;
-    CHECK(stf_h5_create(path, &h, err, sizeof err) == 0, "create: %s", err);
+    stf_h5 *h = new_file(path);
     if (!h) return;
-    stf_h5_attr_double(h, "spacing", S);
     stf_h5_attr_double(h, "body.ball.half_height", 0.05);
     static double x[3 * MAXP], v[3 * MAXP];
     int n = surface(0, 0, x);
@@ -292,9 +279,8 @@ static void test_nan_body_json(const char *path)
     const double q[4] = {1, 0, 0, 0}, w[3] = {0}, f[3] = {0};
     double pos[3] = {0, 0, NAN}, vel[3] = {0};
     CHECK(stf_h5_body_append(h, "ball", 0.0, pos, q, vel, w, f) == 0, "row");
-    CHECK(stf_h5_close(h, err, sizeof err) == 0, "close: %s", err);
     stf_metrics m;
-    CHECK(stf_metrics_compute(path, &m, err, sizeof err) == 0, "metrics: %s", err);
+    close_and_measure(h, path, &m);
     char *json = stf_metrics_json(&m);
     CHECK(json && !strstr(json, "nan]") && !strstr(json, "nan,"), "JSON with nan: %s", json ? json : "");
     free(json);
