@@ -157,6 +157,14 @@ static void center_point(const void *obj, ccd_vec3_t *center)
     ccdVec3Set(center, x[0], x[1], x[2]);
 }
 
+/* n = r / |r|, or +z when r is zero: the way out from a hull's origin. */
+static void out_from_origin(const double r[3], double n[3])
+{
+    double l = norm3(r);
+    if (l > 0) n[0] = r[0] / l, n[1] = r[1] / l, n[2] = r[2] / l;
+    else n[0] = n[1] = 0, n[2] = 1;
+}
+
 /* The point of the affine hull of the m points s (m <= 4) nearest the origin, as weights
  * lam (summing to 1): the Gram system [G 1; 1' 0]. Returns -1 when it is singular. */
 static int affine_nearest(const double (*s)[3], int m, double lam[4])
@@ -228,7 +236,7 @@ static double hull_distance(const collider *c, const double p[3], double nl[3])
             double S[4][3], lam[4];
             int k = 0;
             for (int i = 0; i < m; i++)
-                if (mask >> i & 1) S[k][0] = W[i][0], S[k][1] = W[i][1], S[k][2] = W[i][2], k++;
+                if (mask >> i & 1) memcpy(S[k++], W[i], sizeof S[0]);
             if (affine_nearest((const double (*)[3])S, k, lam) != 0) continue;
             int ok = 1;
             for (int i = 0; i < k; i++) ok &= lam[i] > 0;
@@ -240,12 +248,12 @@ static double hull_distance(const collider *c, const double p[3], double nl[3])
             if (qq < bestn) {
                 bestn = qq, bm = k;
                 for (int a = 0; a < 3; a++) bv[a] = q[a];
-                for (int i = 0; i < k; i++) bw[i][0] = S[i][0], bw[i][1] = S[i][1], bw[i][2] = S[i][2];
+                memcpy(bw, S, (size_t)k * sizeof S[0]);
             }
         }
         if (bm == 0 || !(bestn < vv)) break; /* no progress: v is as near as it gets */
         m = bm;
-        for (int i = 0; i < m; i++) W[i][0] = bw[i][0], W[i][1] = bw[i][1], W[i][2] = bw[i][2];
+        memcpy(W, bw, (size_t)m * sizeof W[0]);
         for (int a = 0; a < 3; a++) v[a] = bv[a];
         if (m == 4) { /* a tetrahedron around the origin: inside */
             inside = 1;
@@ -254,9 +262,7 @@ static double hull_distance(const collider *c, const double p[3], double nl[3])
     }
     double len = norm3(v);
     if (inside || !(len > 0)) { /* touching (libccd saw no overlap): out from the origin */
-        double lp = norm3(p);
-        if (lp > 0) nl[0] = p[0] / lp, nl[1] = p[1] / lp, nl[2] = p[2] / lp;
-        else nl[0] = nl[1] = 0, nl[2] = 1;
+        out_from_origin(p, nl);
         return 0;
     }
     for (int a = 0; a < 3; a++) nl[a] = -v[a] / len;
@@ -295,9 +301,7 @@ static double sdf_convex(const collider *c, const double x[3], double n[3])
         /* A point on the surface (depth 0): EPA has no direction, and gives NaN at a corner
            or a tangent at a face. Out along the line from the hull's origin instead. */
         double r[3] = {x[0] - c->pos[0], x[1] - c->pos[1], x[2] - c->pos[2]};
-        double l = norm3(r);
-        if (l > 0) n[0] = r[0] / l, n[1] = r[1] / l, n[2] = r[2] / l;
-        else n[0] = n[1] = 0, n[2] = 1;
+        out_from_origin(r, n);
         return isfinite(depth) ? -depth : 0.0;
     }
     return -depth;
