@@ -27,9 +27,9 @@ typedef struct body_shape {
     double a[3];
 } body_shape;
 
-/* How far the body reaches below (*below) and above (*above) its centre at orientation q
- * (w, x, y, z): the support of the shape along -z and +z of the world. */
-static void shape_reach(const body_shape *s, const double *q, double *below, double *above)
+/* How far the body reaches below and above its centre at orientation q (w, x, y, z): the
+ * support of the shape along world z (the shapes are symmetric: the same both ways). */
+static double shape_reach(const body_shape *s, const double *q)
 {
     double w = q[0], x = q[1], y = q[2], z = q[3];
     double n = w * w + x * x + y * y + z * z;
@@ -42,7 +42,7 @@ static void shape_reach(const body_shape *s, const double *q, double *below, dou
     else if (!strcmp(s->kind, "cylinder"))
         h = fabs(r2) * s->a[1] + s->a[0] * sqrt(fmax(0, 1 - fmin(1, r2 * r2)));
     else h = s->a[0]; /* sphere */
-    *below = *above = h;
+    return h;
 }
 
 static void body_metrics(const stf_h5r *r, const char *name, double surface,
@@ -67,10 +67,9 @@ static void body_metrics(const stf_h5r *r, const char *name, double surface,
     int contact = -1, descending = 1;
     double zmin = 0, zmax = 0;
     for (int i = 0; i < n; i++) {
-        double z = p[3 * i + 2], below = hh, above = hh;
-        if (oriented) shape_reach(&shape, qs + 4 * i, &below, &above);
+        double z = p[3 * i + 2], reach = oriented ? shape_reach(&shape, qs + 4 * i) : hh;
         if (contact < 0) {
-            if (!(z - below <= surface + g->spacing)) continue; /* no fluid (NaN): never */
+            if (!(z - reach <= surface + g->spacing)) continue; /* no fluid (NaN): never */
             contact = i;
             b->first_contact_time = t[i];
             zmin = zmax = z;
@@ -79,7 +78,7 @@ static void body_metrics(const stf_h5r *r, const char *name, double surface,
             double dx = p[3 * i] - p[3 * i - 3], dy = p[3 * i + 1] - p[3 * i - 2];
             b->roll_distance += sqrt(dx * dx + dy * dy);
         }
-        if (isnan(b->sink_time) && z + above < surface) b->sink_time = t[i];
+        if (isnan(b->sink_time) && z + reach < surface) b->sink_time = t[i];
         if (!isnan(b->sink_time)) continue; /* under the surface: a rise is not a bounce */
         if (descending) {
             if (z < zmin) zmin = z;
