@@ -184,6 +184,17 @@ int stf_sim_create(const stf_scene *scene, stf_sim **out, char *err, size_t errl
     s->phase = calloc((size_t)nb + 1, sizeof *s->phase);
     s->freq = calloc((size_t)nb + 1, sizeof *s->freq);
     s->rng = calloc((size_t)nb + 1, sizeof *s->rng);
+    s->inradius = calloc((size_t)nb + 1, sizeof *s->inradius);
+    s->bound = calloc((size_t)nb + 1, sizeof *s->bound);
+    s->fluid_impulse = calloc(3 * (size_t)nb + 1, sizeof *s->fluid_impulse);
+    if (!s->bodies || !s->phase || !s->freq || !s->rng || !s->inradius || !s->bound ||
+        !s->fluid_impulse) {
+        stf_sim_destroy(s);
+        return snprintf(err, errlen, "out of memory"), 2;
+    }
+    for (int k = 0; k < nb; k++)
+        if (stf_collider_extent(&scene->bodies[k].shape, &s->inradius[k], &s->bound[k]) != 0)
+            s->inradius[k] = s->bound[k] = 0; /* not a bounded shape: make_body says why */
     s->world = dWorldCreate();
     s->space = dHashSpaceCreate(0);
     int rc = make_fluid(s, err, errlen);
@@ -227,6 +238,9 @@ void stf_sim_destroy(stf_sim *s)
     free(s->phase);
     free(s->freq);
     free(s->rng);
+    free(s->inradius);
+    free(s->bound);
+    free(s->fluid_impulse);
     free(s->geoms);
     free(s);
 }
@@ -282,18 +296,6 @@ static void vibrate(stf_sim *s, dBodyID body, int k, const stf_vibration *v, con
 enum { MAX_SPLIT = 64 };
 static const double CFL_H = 0.5, STIFF_MAX = 0.25, BODY_TRAVEL = 0.5;
 
-/* The radius of the largest sphere inside the shape (m). */
-static double inradius(const stf_collider_def *d)
-{
-    switch (d->shape) {
-    case STF_SHAPE_SPHERE:
-    case STF_SHAPE_CAPSULE: return d->radius;
-    case STF_SHAPE_BOX: return fmin(d->half[0], fmin(d->half[1], d->half[2]));
-    case STF_SHAPE_CYLINDER: return fmin(d->radius, d->half_length);
-    default: return 0;
-    }
-}
-
 /* The largest speed (m/s) of a solid's material: body velocity, rotation about its centre
  * at radius r, and the vibration's peak speed (vibrate() sets a kinematic body's velocity
  * at the start of each substep, after the split is chosen). */
@@ -326,7 +328,7 @@ static int substeps_for(const stf_sim *s, double dt)
     double cfl = stf_fluid_max_speed(s->fluid) * dt / (CFL_H * h);
     if (cfl > need) need = cfl;
     for (int k = 0; k < sc->nbodies; k++) {
-        double r = inradius(&sc->bodies[k].shape);
+        double r = s->inradius[k];
         if (sc->bodies[k].motion != STF_MOTION_DYNAMIC || !(r > 0)) continue;
         const dReal *v = dBodyGetLinearVel(s->bodies[k]);
         double travel = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) * dt / (BODY_TRAVEL * r);
@@ -341,12 +343,8 @@ static int substeps_for(const stf_sim *s, double dt)
         if (thin > need) need = thin;
     }
     for (int k = 0; k < sc->nbodies; k++) {
-        const stf_collider_def *d = &sc->bodies[k].shape;
-        const double *hb = d->half;
-        double r = d->shape == STF_SHAPE_BOX ? sqrt(hb[0] * hb[0] + hb[1] * hb[1] + hb[2] * hb[2])
-                                             : d->radius + d->half_length;
-        double thin = (vf + solid_speed(s->bodies[k], r, &sc->bodies[k].vibration)) * dt /
-                      (rp + inradius(d));
+        double thin = (vf + solid_speed(s->bodies[k], s->bound[k], &sc->bodies[k].vibration)) *
+                      dt / (rp + s->inradius[k]);
         if (thin > need) need = thin;
     }
     if (!(need > 1.0)) return 1;
@@ -360,6 +358,7 @@ int stf_sim_step(stf_sim *s)
     double dt = m == 1 ? sc->dt : sc->dt / m;
     stf_solver_stats *acc = &s->step_stats;
     memset(acc, 0, sizeof *acc);
+    memset(s->fluid_impulse, 0, 3 * (size_t)sc->nbodies * sizeof *s->fluid_impulse);
     for (int j = 0; j < m; j++) {
         double t = s->time + j * dt;
         for (int k = 0; k < sc->nbodies; k++)
@@ -369,6 +368,11 @@ int stf_sim_step(stf_sim *s)
             vibrate(s, s->container, sc->nbodies, &sc->container.vibration, s->container_base, t,
                     dt);
         if (stf_ode_step(s->coupler, dt) != 0) return -1;
+        for (int k = 0; k < sc->nbodies; k++) {
+            double f[3], torque[3];
+            stf_ode_body_fluid_force(s->coupler, s->bodies[k], f, torque);
+            for (int a = 0; a < 3; a++) s->fluid_impulse[3 * k + a] += f[a] * dt;
+        }
         /* The Carreau-Yasuda solver splits the coupled step again by its own CFL: count the
          * substeps the fluid took. */
         double lo = dt, hi = dt;
@@ -414,8 +418,7 @@ void stf_sim_body_state(const stf_sim *s, int k, double pos[3], double quat[4], 
                 *w = dBodyGetAngularVel(b);
     for (int a = 0; a < 3; a++) pos[a] = p[a], vel[a] = v[a], angvel[a] = w[a];
     for (int a = 0; a < 4; a++) quat[a] = q[a];
-    double torque[3];
-    stf_ode_body_fluid_force(s->coupler, b, force, torque);
+    for (int a = 0; a < 3; a++) force[a] = s->fluid_impulse[3 * k + a] / s->scene->dt;
 }
 
 /* ---------------------------------------------------------------------- checkpoints */

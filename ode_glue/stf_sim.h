@@ -19,6 +19,10 @@ typedef struct stf_sim {
     double *phase;          /* vibration phase per body (+1 for the container), rad */
     double *freq;           /* current vibration frequency, Hz */
     unsigned *rng;
+    double *inradius;       /* per body: radius of the largest sphere inside it about its
+                               centre, and of the smallest holding it (m; stf_collider_extent) */
+    double *bound;
+    double *fluid_impulse;  /* per body, 3 each: the fluid's impulse over the last step (N s) */
     int removed;            /* particles removed at set-up because they overlapped bodies */
     long steps;             /* steps of the scene's dt taken */
     double time;            /* s, steps * dt */
@@ -43,7 +47,8 @@ void stf_sim_destroy(stf_sim *s);
  * stf_sim.c. Returns 0, or -1 on a numerical failure. */
 int stf_sim_step(stf_sim *s);
 /* A body's state: position (m), quaternion (w,x,y,z), velocity (m/s), angular velocity
- * (rad/s), fluid force of the last step (N). */
+ * (rad/s), and the fluid's force on it (N), its mean over the last step: the impulse of all
+ * the step's substeps divided by the scene's dt. */
 void stf_sim_body_state(const stf_sim *s, int k, double pos[3], double quat[4], double vel[3],
                         double angvel[3], double force[3]);
 

@@ -371,23 +371,24 @@ void collider_velocity_at(const collider *c, const double x[3], double v[3])
     v[2] = c->vel[2] + w[0] * r[1] - w[1] * r[0];
 }
 
-static double bounding_radius(const collider *c)
+/* The radius of the sphere about the body origin that holds the shape (m); -1 for planes
+ * and containers, which reach every particle. Exact for every shape. */
+static double shape_bound(const stf_collider_def *d, const double *points)
 {
-    const stf_collider_def *d = &c->def;
     switch (d->shape) {
     case STF_SHAPE_SPHERE: return d->radius;
     case STF_SHAPE_BOX: return norm3(d->half);
-    case STF_SHAPE_CAPSULE:
-    case STF_SHAPE_CYLINDER: return sqrt(d->radius * d->radius + d->half_length * d->half_length) + d->radius;
+    case STF_SHAPE_CAPSULE: return d->half_length + d->radius;
+    case STF_SHAPE_CYLINDER: return sqrt(d->radius * d->radius + d->half_length * d->half_length);
     case STF_SHAPE_CONVEX: {
         double b = 0;
         for (int k = 0; k < d->npoints; k++) {
-            double r = norm3(c->points + 3 * k);
+            double r = norm3(points + 3 * k);
             if (r > b) b = r;
         }
         return b;
     }
-    default: return -1; /* planes and containers reach every particle */
+    default: return -1;
     }
 }
 
@@ -441,7 +442,7 @@ int collider_init(collider *c, const stf_collider_def *def, char *err, size_t er
         memcpy(c->points, def->points, (size_t)def->npoints * 3 * sizeof *c->points);
     }
     c->rot[0] = c->rot[4] = c->rot[8] = 1;
-    c->bound = bounding_radius(c);
+    c->bound = shape_bound(&c->def, c->points);
     return 0;
 }
 
@@ -528,4 +529,28 @@ void collide_all(stf_fluid *f, double dt)
         for (int i = 0; i < n; i++) hit[i] = (char)collide_one(f, c, i, dt, f->dx);
         collider_take_reaction(c, f->dx, f->x, hit, n);
     }
+}
+
+int stf_collider_extent(const stf_collider_def *def, double *inradius, double *bound)
+{
+    char err[128];
+    collider c;
+    if (collider_init(&c, def, err, sizeof err) != 0) return -1;
+    *bound = c.bound;
+    const double *h = def->half;
+    switch (def->shape) {
+    case STF_SHAPE_SPHERE:
+    case STF_SHAPE_CAPSULE: *inradius = def->radius; break;
+    case STF_SHAPE_BOX: *inradius = fmin(h[0], fmin(h[1], h[2])); break;
+    case STF_SHAPE_CYLINDER: *inradius = fmin(def->radius, def->half_length); break;
+    case STF_SHAPE_CONVEX: {
+        /* the depth of the origin inside the hull; 0 when the hull does not hold it */
+        double n[3], origin[3] = {0, 0, 0};
+        *inradius = fmax(0.0, -collider_sdf(&c, origin, n));
+        break;
+    }
+    default: *inradius = -1;
+    }
+    collider_free(&c);
+    return *bound < 0 ? -1 : 0;
 }

@@ -6,7 +6,8 @@
  *     x y z vx vy vz      float32[n]; optional khist float32[n], id int32[n]
  *   /bodies/NAME          extendible double series: time[N], position[N][3],
  *                         quaternion[N][4] (w x y z), velocity[N][3],
- *                         angular_velocity[N][3], fluid_force[N][3]
+ *                         angular_velocity[N][3], fluid_force[N][3] (N, the mean
+ *                         over the step before the row)
  *   /metrics              string attribute "json"
  *   /checkpoint           while a run goes: its state for `stf run --resume` (see below)
  * plus an XDMF sidecar OUT.xmf next to OUT.h5 (written by stf_h5_close) for ParaView.

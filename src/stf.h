@@ -189,6 +189,10 @@ typedef struct stf_collider_def {
 } stf_collider_def;
 
 stf_collider_def stf_default_collider_def(void);
+/* A bounded shape's size about its body origin: the radius of the largest sphere inside it
+ * (m; 0 for a convex hull that does not hold the origin) and of the smallest sphere holding
+ * it (m). Returns 0; -1 for planes and containers (unbounded) or an invalid def. */
+int stf_collider_extent(const stf_collider_def *def, double *inradius, double *bound);
 
 typedef struct stf_fluid stf_fluid;
 
