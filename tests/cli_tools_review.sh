@@ -1,0 +1,74 @@
+# cli_tools_review.sh - the file tools (report, plot, render, sweep, history) on users' files:
+# `stf report`'s metrics agree with the same quantities computed from the output file by
+# h5py, and bad input exits 2 with a message and leaves every existing file as it was.
+#
+# usage: bash cli_tools_review.sh STF_BINARY PROJECT_DIR   (run in the build's tests directory)
+. "$(dirname "$0")/lib_cli.sh" cli_tools_review "$@"
+export OMP_NUM_THREADS=1 OMP_WAIT_POLICY=passive
+PY=/usr/bin/python3 # with h5py
+SCENE=$PROJ/tests/scenes/small_drop.yaml
+
+# expect_bad NAME CMD...: CMD exits 2 and prints a message on stderr.
+expect_bad() {
+    local name=$1
+    shift
+    "$@" >"$name.out" 2>"$name.err"
+    local rc=$?
+    [ $rc -eq 2 ] || fail "$name: exited $rc, expected 2 ($*)"
+    [ -s "$name.err" ] || fail "$name: no message on stderr ($*)"
+}
+
+# A ball thrown up from the resting fluid's surface (1 m/s, 2 cm radius): it touches at
+# t = 0, rises v^2 / 2g = 5.1 cm and comes down again.
+"$STF" run "$SCENE" -o b.h5 --quiet --threads 1 --set 'fluid.blocks.0.velocity=[0, 0, 0]' \
+    --set 'bodies.0.velocity=[0.2, 0, 1]' --set 'bodies.0.position=[0, 0, 0.1]' >run.err 2>&1 ||
+    { fail "stf run exited $?"; cat run.err >&2; exit 1; }
+
+# 1. report: metrics against an independent reading of the file (definitions: metrics.h)
+"$STF" report b.h5 --json >report.json || fail "stf report --json exited $?"
+"$PY" - b.h5 report.json <<'EOF' || fail "stf report disagrees with h5py"
+import json, sys
+import h5py, numpy as np
+f = h5py.File(sys.argv[1], "r")
+m = json.load(open(sys.argv[2]))
+radius, spacing = 0.02, float(f.attrs["spacing"])
+steps = sorted((k for k in f if k.startswith("Step#")), key=lambda k: int(k[5:]))
+z0 = f[steps[0]]["z"][()]
+surface = z0.max() + spacing / 2  # the highest particle centre + spacing/2 at t = 0
+b = f["bodies/ball"]
+t, pos = b["time"][()], b["position"][()]
+z = pos[:, 2]
+touch = np.nonzero(z - radius <= surface + spacing)[0]
+assert len(touch), "the ball never touches"
+c = touch[0]
+sunk = np.nonzero(z + radius < surface)[0]
+end = sunk[0] if len(sunk) else len(z)
+# rise from the lowest point after contact to the highest point after that, before sinking
+lo = np.minimum.accumulate(z[c:end])
+rebound = (z[c:end] - lo).max()
+speed = max(np.sqrt(sum(f[s][k][()].astype(float) ** 2 for k in ("vx", "vy", "vz"))).max() for s in steps)
+want = {"time_end": float(f[steps[-1]].attrs["TimeValue"]), "surface_height": surface,
+        "first_contact_time": t[c], "max_rebound_height": rebound,
+        "final_x": pos[-1, 0], "final_y": pos[-1, 1], "final_z": pos[-1, 2], "max_speed": speed,
+        "particles": len(f[steps[-1]]["x"])}
+ball = m["bodies"]["ball"]
+got = {"time_end": m["time_end"], "surface_height": m["surface_height"],
+       "first_contact_time": ball["first_contact_time"],
+       "max_rebound_height": ball["max_rebound_height"],
+       "final_x": ball["final_position"][0], "final_y": ball["final_position"][1],
+       "final_z": ball["final_position"][2], "max_speed": m["fluid"]["max_speed"],
+       "particles": m["fluid"]["particles"]}
+bad = [f"{k}: report {got[k]!r}, h5py {want[k]!r}" for k in want
+       if got[k] is None or abs(got[k] - want[k]) > 1e-6 * max(1.0, abs(want[k]))]
+# the physics: a rise of v^2 / 2g (1 m/s up) within 10%, one bounce
+g = 9.81
+if not abs(rebound - 1.0 / (2 * g)) < 0.1 / (2 * g): bad.append(f"rebound {rebound} m, not ~{1/(2*g):.4f} m")
+if ball["bounces"] != 1: bad.append(f"bounces {ball['bounces']}, expected 1")
+if bad: sys.exit("\n".join(bad))
+EOF
+
+if [ $fails -ne 0 ]; then
+    echo "cli_tools_review: $fails failure(s)" >&2
+    exit 1
+fi
+echo "cli_tools_review: ok"
