@@ -67,6 +67,19 @@ if ball["bounces"] != 1: bad.append(f"bounces {ball['bounces']}, expected 1")
 if bad: sys.exit("\n".join(bad))
 EOF
 
+# 2. a picture never replaces a file that is not a picture: plot -o or render --montage onto
+#    the run itself (or a scene) refused, nothing changed; a PNG is replaced as before
+cp b.h5 keep.h5
+cp "$SCENE" scene.yaml
+expect_bad plot_onto_run "$STF" plot b.h5 -o b.h5
+cmp -s b.h5 keep.h5 || { fail "stf plot -o b.h5 overwrote the run b.h5"; cp keep.h5 b.h5; }
+expect_bad montage_onto_run "$STF" render b.h5 --montage b.h5 --width 64 --height 48
+cmp -s b.h5 keep.h5 || { fail "stf render --montage b.h5 overwrote the run b.h5"; cp keep.h5 b.h5; }
+expect_bad plot_onto_scene "$STF" plot b.h5 -o scene.yaml
+cmp -s scene.yaml "$SCENE" || fail "stf plot -o scene.yaml overwrote the scene"
+"$STF" plot b.h5 -o p.png >/dev/null && "$STF" plot b.h5 -o p.png --width 400 >/dev/null ||
+    fail "stf plot could not replace its own p.png"
+
 if [ $fails -ne 0 ]; then
     echo "cli_tools_review: $fails failure(s)" >&2
     exit 1
