@@ -375,8 +375,24 @@ void canvas_blit(canvas *dst, const canvas *src, int x, int y)
 
 /* ---- PNG ---- */
 
+/* 1 if path is an existing file with content that is not a PNG: a picture must not replace
+ * a run, a scene or anything else given by mistake as the output. */
+static int holds_other_data(const char *path)
+{
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return 0;
+    unsigned char sig[8];
+    size_t n = fread(sig, 1, sizeof sig, fp);
+    fclose(fp);
+    return n > 0 && (n < sizeof sig || png_sig_cmp(sig, 0, sizeof sig) != 0);
+}
+
 int canvas_write_png(const canvas *c, const char *path, char *err, size_t errlen)
 {
+    if (holds_other_data(path)) {
+        snprintf(err, errlen, "%s: exists and is not a PNG; not overwritten (choose another name)", path);
+        return -1;
+    }
     unsigned char *buf = malloc((size_t)c->w * c->h * 3);
     png_bytep *rows = malloc((size_t)c->h * sizeof *rows);
     if (!buf || !rows) {

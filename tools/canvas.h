@@ -69,7 +69,8 @@ canvas *canvas_downsample(const canvas *src, int f);
 /* Copies src into dst with its top left at (x, y) (clipped). */
 void canvas_blit(canvas *dst, const canvas *src, int x, int y);
 
-/* Writes an 8-bit RGB PNG. Returns 0, or -1 with "PATH: why" in err. */
+/* Writes an 8-bit RGB PNG. An existing file is replaced only if it is empty or a PNG. Returns
+ * 0, or -1 with "PATH: why" in err. */
 int canvas_write_png(const canvas *c, const char *path, char *err, size_t errlen);
 
 /* Axis ticks for charts: a 1-2-5 step giving about `want` intervals over range, and the
