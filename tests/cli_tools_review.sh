@@ -80,6 +80,18 @@ cmp -s scene.yaml "$SCENE" || fail "stf plot -o scene.yaml overwrote the scene"
 "$STF" plot b.h5 -o p.png >/dev/null && "$STF" plot b.h5 -o p.png --width 400 >/dev/null ||
     fail "stf plot could not replace its own p.png"
 
+# 3. sweep -o into an existing directory that holds no sweep (no plan.txt): refused, as it
+#    would take a finished run_0000.h5 there for its own first run and replace summary.csv
+mkdir other && cp keep.h5 other/run_0000.h5 && echo "my notes" >other/summary.csv
+ls -l --time-style=+%s%N other >other.before
+expect_bad sweep_other_dir "$STF" sweep "$SCENE" --vary bodies.0.mass=0.5,0.06 --duration 0.01 \
+    --jobs 1 --threads 1 --quiet -o other
+ls -l --time-style=+%s%N other | cmp -s - other.before && cmp -s other/run_0000.h5 keep.h5 &&
+    grep -qx "my notes" other/summary.csv || fail "stf sweep -o other changed the directory"
+mkdir empty
+"$STF" sweep "$SCENE" --vary bodies.0.mass=0.05 --duration 0.01 --jobs 1 --threads 1 --quiet \
+    -o empty >empty.out 2>empty.err || fail "stf sweep -o into an empty directory exited $?"
+
 if [ $fails -ne 0 ]; then
     echo "cli_tools_review: $fails failure(s)" >&2
     exit 1
