@@ -14,6 +14,7 @@
  * or 3, written by `stf run` when it closes the file), continues those with a checkpoint
  * (`stf run --resume`) and reruns the others. */
 #define _XOPEN_SOURCE 700 /* realpath */
+#include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
@@ -340,7 +341,21 @@ static int check_run(const sweep_args *a, const sweep_plan *p, int i, stf_scene 
     return 0;
 }
 
-/* Writes DIR/plan.txt, or checks that the one there is the same sweep. */
+/* 1 if directory dir has no entries (or cannot be listed: mkdir or plan.txt will say why). */
+static int dir_is_empty(const char *dir)
+{
+    DIR *d = opendir(dir);
+    if (!d) return 1;
+    const struct dirent *e;
+    int empty = 1;
+    while (empty && (e = readdir(d)))
+        empty = !strcmp(e->d_name, ".") || !strcmp(e->d_name, "..");
+    closedir(d);
+    return empty;
+}
+
+/* Writes DIR/plan.txt, or checks that the one there is the same sweep. A DIR with files but
+ * no plan.txt is not a sweep's: its run_NNNN.h5 would be taken for this sweep's runs. */
 static int write_plan(const sweep_args *a, const sweep_plan *p)
 {
     size_t cap = 1 << 16, len = 0;
@@ -381,6 +396,12 @@ static int write_plan(const sweep_args *a, const sweep_plan *p)
             return 2;
         }
         return 0;
+    }
+    if (!dir_is_empty(a->dir)) {
+        fprintf(stderr, "stf sweep: %s holds files but no sweep (no plan.txt); nothing was changed: "
+                        "choose a new or empty -o DIR\n", a->dir);
+        free(text);
+        return 2;
     }
     f = fopen(path, "w");
     int ok = f && fwrite(text, 1, len, f) == len;
