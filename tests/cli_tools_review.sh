@@ -92,6 +92,25 @@ mkdir empty
 "$STF" sweep "$SCENE" --vary bodies.0.mass=0.05 --duration 0.01 --jobs 1 --threads 1 --quiet \
     -o empty >empty.out 2>empty.err || fail "stf sweep -o into an empty directory exited $?"
 
+# 4. render into a directory of earlier frames: a damaged frame (its x data zeroed on disk,
+#    so it no longer inflates) fails the render with exit 2, and the earlier frames stay
+cp keep.h5 damaged.h5
+"$PY" - damaged.h5 <<'EOF' || fail "cannot damage a copy of b.h5"
+import sys, h5py
+with h5py.File(sys.argv[1], "r") as f:
+    steps = sorted((k for k in f if k.startswith("Step#")), key=lambda k: int(k[5:]))
+    chunk = f[steps[6]]["x"].id.get_chunk_info(0)
+with open(sys.argv[1], "r+b") as raw:
+    raw.seek(chunk.byte_offset)
+    raw.write(bytes(chunk.size))
+EOF
+"$STF" render b.h5 --every 1 -o frames --width 64 --height 48 >r1.out 2>r1.err ||
+    fail "stf render b.h5 exited $?"
+md5sum frames/* >frames.before
+expect_bad render_damaged "$STF" render damaged.h5 -o frames --width 80 --height 60
+md5sum -c --quiet frames.before >/dev/null 2>&1 && [ "$(ls frames | wc -l)" = "$(wc -l <frames.before)" ] ||
+    fail "stf render of a damaged file changed the frames already in the directory"
+
 if [ $fails -ne 0 ]; then
     echo "cli_tools_review: $fails failure(s)" >&2
     exit 1
