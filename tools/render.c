@@ -964,26 +964,37 @@ int cli_render(int argc, char **argv)
         fprintf(stderr, "stf render: cannot create directory %s: %s\n", dir ? dir : "?", strerror(errno));
         goto out;
     }
+    /* Every frame goes to frame_NNNN.png.part first and is renamed once all are drawn: a
+     * frame that cannot be read leaves the frames already in DIR as they were. */
     size_t plen = strlen(dir) + 32;
-    char *png = malloc(plen);
-    if (!png) goto out;
-    for (int i = 0; i < nsel; i++) {
-        canvas *p = render_frame(&v, &cam, &o, frames[i], text_scale, err, sizeof err);
-        if (!p) {
+    char *png = malloc(plen), *part = malloc(plen);
+    int written = 0;
+    if (!png || !part) fprintf(stderr, "stf render: out of memory\n");
+    for (; png && part && written < nsel; written++) {
+        canvas *p = render_frame(&v, &cam, &o, frames[written], text_scale, err, sizeof err);
+        snprintf(part, plen, "%s/frame_%04d.png.part", dir, written);
+        unlink(part);
+        if (!p || canvas_write_png(p, part, err, sizeof err) != 0) {
             fprintf(stderr, "stf render: %s\n", err);
-            free(png);
-            goto out;
+            canvas_free(p);
+            unlink(part);
+            break;
         }
-        snprintf(png, plen, "%s/frame_%04d.png", dir, i);
-        int w = canvas_write_png(p, png, err, sizeof err);
         canvas_free(p);
-        if (w != 0) {
-            fprintf(stderr, "stf render: %s\n", err);
-            free(png);
-            goto out;
+    }
+    for (int i = 0; i < written; i++) {
+        snprintf(part, plen, "%s/frame_%04d.png.part", dir, i);
+        snprintf(png, plen, "%s/frame_%04d.png", dir, i);
+        if (written < nsel) unlink(part);
+        else if (rename(part, png) != 0) {
+            fprintf(stderr, "stf render: %s: %s\n", png, strerror(errno));
+            written = -1;
+            break;
         }
     }
     free(png);
+    free(part);
+    if (written != nsel) goto out;
     printf("stf render: wrote %d frames to %s/frame_0000.png .. frame_%04d.png (file frames %d..%d)\n",
            nsel, dir, nsel - 1, frames[0], frames[nsel - 1]);
     if (on_path("ffmpeg")) {
