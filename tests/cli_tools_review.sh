@@ -111,6 +111,19 @@ expect_bad render_damaged "$STF" render damaged.h5 -o frames --width 80 --height
 md5sum -c --quiet frames.before >/dev/null 2>&1 && [ "$(ls frames | wc -l)" = "$(wc -l <frames.before)" ] ||
     fail "stf render of a damaged file changed the frames already in the directory"
 
+# 5. sweep's chart options are checked before any run: a metric or key that does not exist,
+#    or a --png in a missing directory, exits 2 without running (it ran every run, then
+#    said "no plot" and exited 0)
+for opt in "--plot nosuch" "--plot ball.nosuch" "--x nosuch" "--series nosuch" "--png nodir/s.png"; do
+    name=sweep_$(echo "$opt" | tr -c 'a-z' _)
+    expect_bad "$name" "$STF" sweep "$SCENE" --vary bodies.0.mass=0.05 --duration 0.01 --jobs 1 \
+        --threads 1 --quiet -o "$name" $opt
+    [ -e "$name/run_0000.h5" ] && fail "stf sweep $opt ran before refusing it"
+done
+"$STF" sweep "$SCENE" --vary bodies.0.mass=0.05,0.06 --duration 0.01 --jobs 1 --threads 1 --quiet \
+    -o plotted --plot ball.final_z --x bodies.0.mass >plotted.out 2>plotted.err &&
+    [ -s plotted/summary.png ] || fail "stf sweep --plot ball.final_z did not plot"
+
 if [ $fails -ne 0 ]; then
     echo "cli_tools_review: $fails failure(s)" >&2
     exit 1
