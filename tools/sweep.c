@@ -354,6 +354,18 @@ static int dir_is_empty(const char *dir)
     return empty;
 }
 
+/* 1 if the directory part of path (".", if none) is a directory. */
+static int dir_exists_for(const char *path)
+{
+    char dir[4096];
+    snprintf(dir, sizeof dir, "%s", path);
+    char *slash = strrchr(dir, '/');
+    if (!slash) return 1;
+    slash[slash == dir] = 0; /* "/x.png": the root */
+    struct stat st;
+    return stat(dir, &st) == 0 && S_ISDIR(st.st_mode);
+}
+
 /* Writes DIR/plan.txt, or checks that the one there is the same sweep. A DIR with files but
  * no plan.txt is not a sweep's: its run_NNNN.h5 would be taken for this sweep's runs. */
 static int write_plan(const sweep_args *a, const sweep_plan *p)
@@ -736,11 +748,23 @@ int cli_sweep(int argc, char **argv)
         plan_free(&p, a.list != NULL);
         return rc;
     }
+    stf_metrics names = {0}; /* the first run's body names, for sweep_plot_check */
     for (int i = 0; i < p.nruns && rc == 0; i++) { /* every run's scene loads: bad input first */
         stf_scene *sc;
         if (p.runs[i].repeat > 0) continue;
         rc = check_run(&a, &p, i, &sc);
+        for (int k = 0; rc == 0 && i == 0 && k < sc->nbodies && k < STF_METRICS_MAX_BODIES; k++)
+            snprintf(names.bodies[names.nbodies++].name, sizeof names.bodies[0].name, "%s", sc->bodies[k].name);
         if (rc == 0) stf_scene_free(sc);
+    }
+    char perr[512];
+    if (rc == 0 && sweep_plot_check(&p, &names, a.plot_metric, a.plot_x, a.plot_series, perr, sizeof perr) != 0) {
+        fprintf(stderr, "stf sweep: %s\n", perr);
+        rc = 2;
+    }
+    if (rc == 0 && a.png && !dir_exists_for(a.png)) {
+        fprintf(stderr, "stf sweep: --png %s: its directory does not exist\n", a.png);
+        rc = 2;
     }
     int rank = 0, size = 1, local = 1;
 #ifdef STF_HAVE_MPI

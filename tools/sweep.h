@@ -40,4 +40,10 @@ typedef struct sweep_plan {
 int sweep_plot(const char *png, const sweep_plan *p, const char *metric, const char *x,
                const char *series, char *err, size_t errlen);
 
+/* The checks of sweep_plot's options that need no run, made before the runs: metric (if not
+ * NULL) names a column for runs with m's bodies (only their names are read), x and series
+ * (if not NULL) are varied keys. Returns 0, or -1 with a reason in err. */
+int sweep_plot_check(const sweep_plan *p, const stf_metrics *m, const char *metric, const char *x,
+                     const char *series, char *err, size_t errlen);
+
 #endif

@@ -71,27 +71,35 @@ static void marker(canvas *c, double x, double y, const float rgb[3], int open)
     if (open) canvas_circle(c, x, y, 3, WHITE);
 }
 
+int sweep_plot_check(const sweep_plan *p, const stf_metrics *m0, const char *metric,
+                     const char *xname, const char *sname, char *err, size_t errlen)
+{
+    if (p->nkeys == 0) return snprintf(err, errlen, "no varied keys"), -1;
+    double probe;
+    if (metric && metric_value(m0, metric, &probe) != 0)
+        return snprintf(err, errlen, "--plot %s: no such metric (see the columns of summary.csv)", metric), -1;
+    if (xname && find_key(p, xname) < 0) return snprintf(err, errlen, "--x %s: not a varied key", xname), -1;
+    if (sname && find_key(p, sname) < 0)
+        return snprintf(err, errlen, "--series %s: not a varied key", sname), -1;
+    return 0;
+}
+
 int sweep_plot(const char *png, const sweep_plan *p, const char *metric, const char *xname,
                const char *sname, char *err, size_t errlen)
 {
-    if (p->nkeys == 0) return snprintf(err, errlen, "no varied keys"), -1;
     const stf_metrics *m0 = NULL;
     for (int i = 0; i < p->nruns && !m0; i++)
         if (p->runs[i].have_metrics) m0 = &p->runs[i].m;
-    if (!m0) return snprintf(err, errlen, "no finished run"), -1;
+    if (!m0) return snprintf(err, errlen, p->nkeys ? "no finished run" : "no varied keys"), -1;
     char defmetric[96];
     if (!metric) {
         if (m0->nbodies > 0) snprintf(defmetric, sizeof defmetric, "%s.float_duration", m0->bodies[0].name);
         else snprintf(defmetric, sizeof defmetric, "fluid.max_speed");
         metric = defmetric;
     }
-    double probe;
-    if (metric_value(m0, metric, &probe) != 0)
-        return snprintf(err, errlen, "--plot %s: no such metric (see the columns of summary.csv)", metric), -1;
+    if (sweep_plot_check(p, m0, metric, xname, sname, err, errlen) != 0) return -1;
     int kx = xname ? find_key(p, xname) : 0;
-    if (kx < 0) return snprintf(err, errlen, "--x %s: not a varied key", xname), -1;
     int ks = sname ? find_key(p, sname) : (p->nkeys > 1 ? (kx == 0 ? 1 : 0) : -1);
-    if (sname && ks < 0) return snprintf(err, errlen, "--series %s: not a varied key", sname), -1;
     if (ks == kx) ks = -1;
 
     /* distinct x values (numeric, sorted) and series values (numeric sorted, else as met) */
