@@ -124,6 +124,17 @@ done
     -o plotted --plot ball.final_z --x bodies.0.mass >plotted.out 2>plotted.err &&
     [ -s plotted/summary.png ] || fail "stf sweep --plot ball.final_z did not plot"
 
+# 6. history: every refusal says why, at the right place
+longq=$(printf '0.5%.0s,' $(seq 80))0.5
+expect_bad hist_long_q "$STF" history --q "$longq" --fig 2 -o hist
+expect_bad hist_long_d "$STF" history --d "$(printf '5%.0s,' $(seq 150))5" --fig 3 -o hist
+printf 't,v\n0,1\n0.1,x\n' >badv.csv
+expect_bad hist_bad_value "$STF" history --profile badv.csv --fig 3 -o hist
+grep -q "badv.csv:3:.*'x'" hist_bad_value.err || fail "history: the bad value 'x' not named: $(cat hist_bad_value.err)"
+printf 'nan,1\n0.1,2\n0.2,3\n' >nanrow.csv
+expect_bad hist_nan_row "$STF" history --profile nanrow.csv --fig 3 -o hist
+grep -q "nanrow.csv:1:" hist_nan_row.err || fail "history: a first row 'nan,1' not refused at line 1"
+
 if [ $fails -ne 0 ]; then
     echo "cli_tools_review: $fails failure(s)" >&2
     exit 1
