@@ -218,7 +218,10 @@ static int cmp_int(const void *a, const void *b) { return (*(const int *)a > *(c
 static int parse_q_list(const char *val, opts *o)
 {
     char buf[256];
-    if (strlen(val) >= sizeof buf) return -1;
+    if (strlen(val) >= sizeof buf) {
+        fprintf(stderr, "stf history: --q value too long (at most %zu characters)\n", sizeof buf - 1);
+        return -1;
+    }
     strcpy(buf, val);
     o->nq = 0;
     for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
@@ -239,7 +242,10 @@ static int parse_q_list(const char *val, opts *o)
 static int parse_d_list(const char *val, opts *o)
 {
     char buf[256];
-    if (strlen(val) >= sizeof buf) return -1;
+    if (strlen(val) >= sizeof buf) {
+        fprintf(stderr, "stf history: --d value too long (at most %zu characters)\n", sizeof buf - 1);
+        return -1;
+    }
     strcpy(buf, val);
     int n = 0, d[MAXD + 8];
     for (char *save = NULL, *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
@@ -347,8 +353,10 @@ static int read_profile(const char *path, profile *p, double *dt, int dt_given)
         while (*s == ' ' || *s == '\t') s++;
         s[strcspn(s, "\r\n")] = 0;
         if (!*s || *s == '#') continue;
-        if (header_ok && ((*s >= 'a' && *s <= 'z') || (*s >= 'A' && *s <= 'Z'))) {
-            header_ok = 0; /* a column-name header */
+        char *num_end;
+        strtod(s, &num_end);
+        if (header_ok && num_end == s && ((*s >= 'a' && *s <= 'z') || (*s >= 'A' && *s <= 'Z'))) {
+            header_ok = 0; /* a column-name header ('nan' or 'inf' is a value, refused below) */
             continue;
         }
         header_ok = 0;
@@ -371,8 +379,10 @@ static int read_profile(const char *path, profile *p, double *dt, int dt_given)
             goto out;
         }
         double t = 0, v;
-        if ((nf == 2 && parse_double(fields[0], &t) != 0) || parse_double(fields[nf - 1], &v) != 0) {
-            fprintf(stderr, "stf history: %s:%d: not a finite number in '%s'\n", path, lineno, s);
+        int bad_field = nf == 2 && parse_double(fields[0], &t) != 0 ? 0
+                        : parse_double(fields[nf - 1], &v) != 0 ? nf - 1 : -1;
+        if (bad_field >= 0) {
+            fprintf(stderr, "stf history: %s:%d: not a finite number: '%s'\n", path, lineno, fields[bad_field]);
             goto out;
         }
         if (p->n >= cap) {
