@@ -135,6 +135,13 @@ printf 'nan,1\n0.1,2\n0.2,3\n' >nanrow.csv
 expect_bad hist_nan_row "$STF" history --profile nanrow.csv --fig 3 -o hist
 grep -q "nanrow.csv:1:" hist_nan_row.err || fail "history: a first row 'nan,1' not refused at line 1"
 
+# 7. a run file cut short is said to be one (it was "not an stf output file")
+head -c 100000 keep.h5 >short.h5
+for cmd in report plot render; do
+    expect_bad "short_$cmd" "$STF" $cmd short.h5
+    grep -q "short.h5: .*cut short" "short_$cmd.err" || fail "stf $cmd short.h5: $(cat short_$cmd.err)"
+done
+
 if [ $fails -ne 0 ]; then
     echo "cli_tools_review: $fails failure(s)" >&2
     exit 1
