@@ -774,6 +774,8 @@ int stf_h5r_open(const char *path, stf_h5r **out, char *err, size_t errlen)
         fmt_err(err, errlen, "%s: %s", path, strerror(errno));
         return -1;
     }
+    unsigned char sig[8];
+    int hdf5_sig = fread(sig, 1, sizeof sig, probe) == sizeof sig && !memcmp(sig, "\211HDF\r\n\032\n", 8);
     fclose(probe);
     stf_h5r *r = calloc(1, sizeof *r);
     if (!r) {
@@ -782,7 +784,10 @@ int stf_h5r_open(const char *path, stf_h5r **out, char *err, size_t errlen)
     }
     r->file = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
     if (r->file < 0) {
-        fmt_err(err, errlen, "%s: not an stf output file (not a readable HDF5 file)", path);
+        if (hdf5_sig) /* an HDF5 start, an unreadable rest: a copy cut short, a run killed early */
+            fmt_err(err, errlen, "%s: an HDF5 file that cannot be opened: cut short or damaged (a "
+                                 "run killed before its first frame was written leaves one)", path);
+        else fmt_err(err, errlen, "%s: not an stf output file (not a readable HDF5 file)", path);
         free(r);
         return -1;
     }
