@@ -142,6 +142,13 @@ for cmd in report plot render; do
     grep -q "short.h5: .*cut short" "short_$cmd.err" || fail "stf $cmd short.h5: $(cat short_$cmd.err)"
 done
 
+# 8. an unknown option last on the line is called unknown (it was "needs a value")
+for cmd in "render b.h5 --quiet" "plot b.h5 --json" "history --fig 2 --quiet"; do
+    name=last_$(echo "$cmd" | tr -c 'a-z' _)
+    expect_bad "$name" "$STF" $cmd
+    grep -q "unknown option '--[a-z]*'" "$name.err" || fail "stf $cmd: $(head -1 $name.err)"
+done
+
 if [ $fails -ne 0 ]; then
     echo "cli_tools_review: $fails failure(s)" >&2
     exit 1
