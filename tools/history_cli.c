@@ -738,7 +738,12 @@ int cli_history(int argc, char **argv)
             return 2;
         }
         if (i + 1 >= argc) {
-            fprintf(stderr, "stf history: option %s needs a value\n%s\n", a, USAGE);
+            static const char *const valued[] = {"--fig", "-o", "--q", "--d", "--dt", "--k-hist",
+                                                 "--steps", "--n", "--profile"};
+            int known = 0;
+            for (size_t k = 0; k < sizeof valued / sizeof *valued; k++) known |= !strcmp(a, valued[k]);
+            if (known) fprintf(stderr, "stf history: option %s needs a value\n%s\n", a, USAGE);
+            else fprintf(stderr, "stf history: unknown option '%s'\n%s\n", a, USAGE);
             return 2;
         }
         const char *val = argv[++i];

@@ -200,7 +200,9 @@ int cli_plot(int argc, char **argv)
             continue;
         }
         if (i + 1 >= argc) {
-            fprintf(stderr, "stf plot: option %s needs a value\n%s\n", a, USAGE);
+            if (!strcmp(a, "-o") || !strcmp(a, "--body") || !strcmp(a, "--width") || !strcmp(a, "--height"))
+                fprintf(stderr, "stf plot: option %s needs a value\n%s\n", a, USAGE);
+            else fprintf(stderr, "stf plot: unknown option '%s'\n%s\n", a, USAGE);
             return 2;
         }
         const char *val = argv[++i];

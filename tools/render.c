@@ -838,7 +838,12 @@ int cli_render(int argc, char **argv)
             in = a;
             continue;
         } else if (!has_val) {
-            fprintf(stderr, "stf render: option %s needs a value\n%s\n", a, USAGE);
+            static const char *const valued[] = {"-o", "--frames", "--montage", "--every", "--width",
+                                                 "--height", "--camera", "--look", "--max", "--color"};
+            int known = 0;
+            for (size_t k = 0; k < sizeof valued / sizeof *valued; k++) known |= !strcmp(a, valued[k]);
+            if (known) fprintf(stderr, "stf render: option %s needs a value\n%s\n", a, USAGE);
+            else fprintf(stderr, "stf render: unknown option '%s'\n%s\n", a, USAGE);
             return 2;
         } else if (!strcmp(a, "-o")) dir_opt = val;
         else if (!strcmp(a, "--frames")) frames_opt = val;
