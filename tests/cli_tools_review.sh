@@ -149,6 +149,20 @@ for cmd in "render b.h5 --quiet" "plot b.h5 --json" "history --fig 2 --quiet"; d
     grep -q "unknown option '--[a-z]*'" "$name.err" || fail "stf $cmd: $(head -1 $name.err)"
 done
 
+# 9. bench: an option the chosen benchmark does not read is refused before it runs (table1 -o
+#    DIR, effects --knobs, grid --grow, dam --steps were silently ignored)
+SMALL=(--set fluid.spacing=0.04 --threads 1)
+for case in "table1 -o res --steps 1 --warmup 0" "effects --knobs dt --steps 1 --warmup 0" \
+    "grid --grow domain --steps 1" "dam --steps 5" "accuracy --repeat 2 --knobs dt --duration 0.01"; do
+    set -- $case
+    what=$1 opt=$2
+    shift
+    name=bench_$what
+    expect_bad "$name" "$STF" bench "$what" "$SCENE" "${SMALL[@]}" "$@"
+    grep -q -- "$opt" "$name.err" || fail "stf bench $what $opt: $(head -1 $name.err)"
+done
+[ -e res ] && fail "stf bench table1 -o res made res"
+
 if [ $fails -ne 0 ]; then
     echo "cli_tools_review: $fails failure(s)" >&2
     exit 1
