@@ -68,6 +68,34 @@ static int bad(const char *msg, const char *arg)
     return 2;
 }
 
+/* The benchmarks that read each of these options; the others refuse it rather than ignore it.
+ * (--set, --unset and --threads apply to all.) */
+static const struct {
+    const char *opt, *users;
+} option_users[] = {{"-o", "accuracy"},          {"--out", "accuracy"},
+                    {"--steps", "table1 effects scaling grid"},
+                    {"--warmup", "table1 effects scaling"},
+                    {"--repeat", "table1 effects scaling"},
+                    {"--full", "table1 effects scaling grid accuracy"},
+                    {"--duration", "accuracy dam"}, {"--error", "accuracy"},
+                    {"--knobs", "accuracy"},       {"--grow", "scaling"}};
+
+/* 1 if option s is one that benchmark what does not read (message printed). */
+static int not_for(const char *what, const char *s)
+{
+    for (size_t k = 0; k < sizeof option_users / sizeof *option_users; k++) {
+        if (strcmp(s, option_users[k].opt)) continue;
+        char word[32], list[96];
+        snprintf(word, sizeof word, " %s ", what);
+        snprintf(list, sizeof list, " %s ", option_users[k].users);
+        if (strstr(list, word)) return 0;
+        fprintf(stderr, "stf bench %s: %s does not apply to it (only to: %s)\n", what, s,
+                option_users[k].users);
+        return 1;
+    }
+    return 0;
+}
+
 static int parse(int argc, char **argv, bench_args *a)
 {
     memset(a, 0, sizeof *a);
@@ -82,6 +110,7 @@ static int parse(int argc, char **argv, bench_args *a)
         const char *s = argv[i];
         int more = i + 1 < argc;
         char *end;
+        if (not_for(a->what, s)) return 2;
         if ((!strcmp(s, "-o") || !strcmp(s, "--out")) && more) a->out = argv[++i];
         else if (!strcmp(s, "--set") && more) {
             char *eq = strchr(argv[++i], '=');
