@@ -163,6 +163,15 @@ for case in "table1 -o res --steps 1 --warmup 0" "effects --knobs dt --steps 1 -
 done
 [ -e res ] && fail "stf bench table1 -o res made res"
 
+# 10. render options that would be ignored are refused; --every picks a montage's frames
+expect_bad render_every_list "$STF" render b.h5 --frames 1,2 --every 2 -o ev --width 64 --height 48
+expect_bad render_every_one "$STF" render b.h5 --frames 3 --every 2 -o ev --width 64 --height 48
+expect_bad render_max_alone "$STF" render b.h5 --max 3 -o ev --width 64 --height 48
+[ -e ev ] && fail "stf render made ev for a refused command"
+"$STF" render b.h5 --montage every.png --every 5 --width 64 --height 48 >every.out 2>every.err ||
+    fail "stf render --montage --every 5 exited $?"
+grep -q "(3 frames)" every.out || fail "stf render --montage --every 5 of 11 frames: $(cat every.out)"
+
 if [ $fails -ne 0 ]; then
     echo "cli_tools_review: $fails failure(s)" >&2
     exit 1
