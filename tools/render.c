@@ -820,7 +820,7 @@ static int mkdirs(const char *dir)
 int cli_render(int argc, char **argv)
 {
     const char *in = NULL, *dir_opt = NULL, *frames_opt = NULL, *montage = NULL;
-    int every = 1, width = 0, height = 0, color = COLOR_NONE, have_eye = 0, have_look = 0;
+    int every = 1, width = 0, height = 0, color = COLOR_NONE, have_eye = 0, have_look = 0, every_given = 0;
     double vmax_opt = 0, eye[3], look[3];
     for (int i = 0; i < argc; i++) {
         const char *a = argv[i];
@@ -848,7 +848,7 @@ int cli_render(int argc, char **argv)
         } else if (!strcmp(a, "-o")) dir_opt = val;
         else if (!strcmp(a, "--frames")) frames_opt = val;
         else if (!strcmp(a, "--montage")) montage = val;
-        else if (!strcmp(a, "--every")) bad = parse_int(val, &every, 1);
+        else if (!strcmp(a, "--every")) bad = parse_int(val, &every, 1), every_given = 1;
         else if (!strcmp(a, "--width")) bad = parse_int(val, &width, 16);
         else if (!strcmp(a, "--height")) bad = parse_int(val, &height, 16);
         else if (!strcmp(a, "--camera")) bad = parse_vec3(val, eye), have_eye = 1;
@@ -880,6 +880,14 @@ int cli_render(int argc, char **argv)
         fprintf(stderr, "stf render: --width/--height at most 8192\n");
         return 2;
     }
+    if (vmax_opt > 0 && color == COLOR_NONE) {
+        fprintf(stderr, "stf render: --max is the top of the colour scale: give --color speed or khist\n");
+        return 2;
+    }
+    if (every_given && frames_opt && strcmp(frames_opt, "all") && !strchr(frames_opt, ':')) {
+        fprintf(stderr, "stf render: --every applies to --frames all or A:B, not to '%s'\n", frames_opt);
+        return 2;
+    }
 
     char err[1024];
     scene_view v;
@@ -897,7 +905,7 @@ int cli_render(int argc, char **argv)
         fprintf(stderr, "stf render: %s\n", err);
         goto out;
     }
-    if (montage && !frames_opt && nsel > 4) { /* four frames spread over the run */
+    if (montage && !frames_opt && !every_given && nsel > 4) { /* four frames spread over the run */
         for (int i = 0; i < 4; i++) frames[i] = (int)lround((double)i * (nframes - 1) / 3);
         nsel = 4;
     }
