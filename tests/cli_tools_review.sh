@@ -172,6 +172,11 @@ expect_bad render_max_alone "$STF" render b.h5 --max 3 -o ev --width 64 --height
     fail "stf render --montage --every 5 exited $?"
 grep -q "(3 frames)" every.out || fail "stf render --montage --every 5 of 11 frames: $(cat every.out)"
 
+# 11. sweep --list: a value the scene refuses is reported at its line of the list file
+printf '# runs\nbodies.0.mass=0.05\n\nbodies.0.mass=abc\n' >bad.list
+expect_bad sweep_list_value "$STF" sweep "$SCENE" --list bad.list --quiet -o listed
+grep -q "bad.list:4:.*bodies.0.mass" sweep_list_value.err || fail "sweep --list: $(cat sweep_list_value.err)"
+
 if [ $fails -ne 0 ]; then
     echo "cli_tools_review: $fails failure(s)" >&2
     exit 1
