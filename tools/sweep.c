@@ -242,7 +242,10 @@ static int read_list(const char *path, sweep_plan *p, int repeat)
             any = 1;
         }
         if (!any) continue;
-        for (int r = 0; r < repeat; r++) add_run(p, vals, combo, r);
+        for (int r = 0; r < repeat; r++) {
+            add_run(p, vals, combo, r);
+            p->runs[p->nruns - 1].line = ln;
+        }
         combo++;
     }
     fclose(f);
@@ -335,7 +338,8 @@ static int check_run(const sweep_args *a, const sweep_plan *p, int i, stf_scene 
     }
     char err[2048];
     if (stf_scene_load(a->scene, ov, n, out, err, sizeof err) != 0) {
-        fprintf(stderr, "%s\n", err);
+        if (p->runs[i].line) fprintf(stderr, "%s:%d: %s\n", a->list, p->runs[i].line, err);
+        else fprintf(stderr, "%s\n", err);
         return 2;
     }
     return 0;

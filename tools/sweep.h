@@ -18,6 +18,7 @@ typedef struct sweep_key {
 typedef struct sweep_run {
     char *val[SWEEP_MAX_KEYS]; /* this run's value of each key, NULL if it leaves it alone */
     int combo, repeat;         /* which combination of values, which repetition of it */
+    int line;                  /* --list: the run's line in the list file; 0 for --vary */
     int status;                /* exit_status in its file (0 ok, 3 numerical failure), -1 none */
     int have_metrics;
     stf_metrics m;
