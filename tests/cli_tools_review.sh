@@ -177,6 +177,13 @@ printf '# runs\nbodies.0.mass=0.05\n\nbodies.0.mass=abc\n' >bad.list
 expect_bad sweep_list_value "$STF" sweep "$SCENE" --list bad.list --quiet -o listed
 grep -q "bad.list:4:.*bodies.0.mass" sweep_list_value.err || fail "sweep --list: $(cat sweep_list_value.err)"
 
+# 12. a render into a directory of a longer earlier render leaves only its own frames: the
+#     earlier frame_0003.png .. were left after the new frame_0000..0002 (a mixed sequence,
+#     which ffmpeg's frame_%04d.png pattern would put into the movie)
+"$STF" render b.h5 --frames 0:2 -o frames --width 64 --height 48 >r3.out 2>r3.err ||
+    fail "stf render --frames 0:2 exited $?"
+[ "$(ls frames/frame_*.png | wc -l)" = 3 ] || fail "frames/ holds $(ls frames | tr '\n' ' ')after a 3-frame render"
+
 if [ $fails -ne 0 ]; then
     echo "cli_tools_review: $fails failure(s)" >&2
     exit 1
