@@ -1005,6 +1005,11 @@ int cli_render(int argc, char **argv)
             break;
         }
     }
+    /* the rest of a longer earlier render's sequence would continue this one's (and its movie) */
+    for (int i = nsel; written == nsel && i <= 9999; i++) {
+        snprintf(png, plen, "%s/frame_%04d.png", dir, i);
+        if (unlink(png) != 0) break;
+    }
     free(png);
     free(part);
     if (written != nsel) goto out;
