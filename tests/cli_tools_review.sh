@@ -184,6 +184,11 @@ grep -q "bad.list:4:.*bodies.0.mass" sweep_list_value.err || fail "sweep --list:
     fail "stf render --frames 0:2 exited $?"
 [ "$(ls frames/frame_*.png | wc -l)" = 3 ] || fail "frames/ holds $(ls frames | tr '\n' ' ')after a 3-frame render"
 
+# 13. every option a tool takes is in its --help (plot's --width/--height and render's --max
+#     were missing from `stf plot --help` / `stf --help`)
+"$STF" plot --help | grep -q -- "--width W" || fail "stf plot --help lacks --width"
+"$STF" --help | grep -q -- "--max V" || fail "stf --help lacks render's --max"
+
 if [ $fails -ne 0 ]; then
     echo "cli_tools_review: $fails failure(s)" >&2
     exit 1
