@@ -114,7 +114,8 @@ md5sum -c --quiet frames.before >/dev/null 2>&1 && [ "$(ls frames | wc -l)" = "$
 # 5. sweep's chart options are checked before any run: a metric or key that does not exist,
 #    or a --png in a missing directory, exits 2 without running (it ran every run, then
 #    said "no plot" and exited 0)
-for opt in "--plot nosuch" "--plot ball.nosuch" "--x nosuch" "--series nosuch" "--png nodir/s.png"; do
+for opt in "--plot nosuch" "--plot ball.nosuch" "--x nosuch" "--series nosuch" "--png nodir/s.png" \
+    "--png scene.yaml"; do
     name=sweep_$(echo "$opt" | tr -c 'a-z' _)
     expect_bad "$name" "$STF" sweep "$SCENE" --vary bodies.0.mass=0.05 --duration 0.01 --jobs 1 \
         --threads 1 --quiet -o "$name" $opt
