@@ -377,7 +377,7 @@ void canvas_blit(canvas *dst, const canvas *src, int x, int y)
 
 /* 1 if path is an existing file with content that is not a PNG: a picture must not replace
  * a run, a scene or anything else given by mistake as the output. */
-static int holds_other_data(const char *path)
+int canvas_holds_other_data(const char *path)
 {
     FILE *fp = fopen(path, "rb");
     if (!fp) return 0;
@@ -389,7 +389,7 @@ static int holds_other_data(const char *path)
 
 int canvas_write_png(const canvas *c, const char *path, char *err, size_t errlen)
 {
-    if (holds_other_data(path)) {
+    if (canvas_holds_other_data(path)) {
         snprintf(err, errlen, "%s: exists and is not a PNG; not overwritten (choose another name)", path);
         return -1;
     }

@@ -72,6 +72,8 @@ void canvas_blit(canvas *dst, const canvas *src, int x, int y);
 /* Writes an 8-bit RGB PNG. An existing file is replaced only if it is empty or a PNG. Returns
  * 0, or -1 with "PATH: why" in err. */
 int canvas_write_png(const canvas *c, const char *path, char *err, size_t errlen);
+/* 1 if path is a file that canvas_write_png would not replace (not empty, not a PNG). */
+int canvas_holds_other_data(const char *path);
 
 /* Axis ticks for charts: a 1-2-5 step giving about `want` intervals over range, and the
  * number of decimals that step needs in a label (0..6). */

@@ -32,6 +32,7 @@
 #include <mpi.h>
 #endif
 
+#include "canvas.h"
 #include "cli.h"
 #include "h5io.h"
 #include "metrics.h"
@@ -768,6 +769,10 @@ int cli_sweep(int argc, char **argv)
     }
     if (rc == 0 && a.png && !dir_exists_for(a.png)) {
         fprintf(stderr, "stf sweep: --png %s: its directory does not exist\n", a.png);
+        rc = 2;
+    }
+    if (rc == 0 && a.png && canvas_holds_other_data(a.png)) {
+        fprintf(stderr, "stf sweep: --png %s: exists and is not a PNG; not overwritten\n", a.png);
         rc = 2;
     }
     int rank = 0, size = 1, local = 1;
