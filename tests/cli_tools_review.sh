@@ -168,6 +168,9 @@ done
 expect_bad render_every_list "$STF" render b.h5 --frames 1,2 --every 2 -o ev --width 64 --height 48
 expect_bad render_every_one "$STF" render b.h5 --frames 3 --every 2 -o ev --width 64 --height 48
 expect_bad render_max_alone "$STF" render b.h5 --max 3 -o ev --width 64 --height 48
+# a range that ends past the last frame is refused, not cut to the file (0: runs to the end)
+expect_bad render_past_end "$STF" render b.h5 --frames 0:11 -o ev --width 64 --height 48
+grep -q "frame 11 out of range" render_past_end.err || fail "render --frames 0:11: $(cat render_past_end.err)"
 [ -e ev ] && fail "stf render made ev for a refused command"
 "$STF" render b.h5 --montage every.png --every 5 --width 64 --height 48 >every.out 2>every.err ||
     fail "stf render --montage --every 5 exited $?"

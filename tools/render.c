@@ -595,7 +595,12 @@ static int select_frames(const char *spec, int nframes, int every, int **out, ch
             snprintf(right, sizeof right, "%s", colon + 1);
             if (left[0] && parse_int(left, &a, 0) != 0) goto bad;
             if (right[0] && parse_int(right, &b, 0) != 0) goto bad;
-            if (b > nframes - 1) b = nframes - 1;
+            if (b > nframes - 1) { /* an explicit end past the file is refused, not cut */
+                snprintf(err, errlen, "--frames %s: frame %d out of range (the file has %d frames, "
+                         "0..%d; 'A:' runs to the end)", spec, b, nframes, nframes - 1);
+                free(list);
+                return -1;
+            }
             if (a > b) {
                 snprintf(err, errlen, "--frames %s: no frames in that range (the file has %d frames, 0..%d)",
                          spec, nframes, nframes - 1);
