@@ -167,6 +167,10 @@ expect_bad bad_flag '--bogus' -- \
     "$STF" run "$BASE" -o out.h5 --quiet --bogus
 expect_bad bad_threads '--threads' -- \
     "$STF" run "$BASE" -o out.h5 --quiet --threads zero
+expect_bad bad_ckpt_frames '--checkpoint-frames must be a number of frames >= 1' -- \
+    "$STF" run "$BASE" -o out.h5 --quiet --checkpoint-frames 0
+expect_bad ckpt_both '--checkpoint-frames cannot be combined with --checkpoint' -- \
+    "$STF" run "$BASE" -o out.h5 --quiet --checkpoint 5 --checkpoint-frames 3
 expect_bad bad_command 'unknown command' -- \
     "$STF" frobnicate "$BASE"
 expect_bad no_scene 'nonexistent\.yaml' 'cannot read' -- \
