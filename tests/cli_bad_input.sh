@@ -137,8 +137,11 @@ expect_bad utf8 'utf8\.yaml:2:2: scene: not UTF-8' -- "$STF" run utf8.yaml -o ou
         echo "a$i: &a$i [*a$p, *a$p, *a$p, *a$p, *a$p, *a$p, *a$p, *a$p, *a$p, *a$p]"
     done
 } >laughs.yaml
+# cpu_limit S CMD ARGS...: CMD with at most S seconds of CPU time (killed past it: exit 137 or
+# 152, not 2). CPU, not wall-clock time: a loaded machine makes the refusal slow, not costly.
+cpu_limit() { (ulimit -t "$1" && shift && exec "$@"); }
 expect_bad laughs 'laughs\.yaml:[0-9]+:[0-9]+: scene: aliases expand' -- \
-    timeout 20 "$STF" run laughs.yaml -o out.h5 --quiet
+    cpu_limit 20 "$STF" run laughs.yaml -o out.h5 --quiet
 
 # the same errors through `stf check`
 expect_bad check_q15 "q15\\.yaml:[0-9]+:[0-9]+: effects\\.history\\.q: " -- \
@@ -167,6 +170,10 @@ expect_bad bad_flag '--bogus' -- \
     "$STF" run "$BASE" -o out.h5 --quiet --bogus
 expect_bad bad_threads '--threads' -- \
     "$STF" run "$BASE" -o out.h5 --quiet --threads zero
+expect_bad bad_ckpt_frames '--checkpoint-frames must be a number of frames >= 1' -- \
+    "$STF" run "$BASE" -o out.h5 --quiet --checkpoint-frames 0
+expect_bad ckpt_both '--checkpoint-frames cannot be combined with --checkpoint' -- \
+    "$STF" run "$BASE" -o out.h5 --quiet --checkpoint 5 --checkpoint-frames 3
 expect_bad bad_command 'unknown command' -- \
     "$STF" frobnicate "$BASE"
 expect_bad no_scene 'nonexistent\.yaml' 'cannot read' -- \

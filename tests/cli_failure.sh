@@ -21,10 +21,14 @@ f = h5py.File("blow.h5", "r")
 assert "Step#0" in f and np.all(np.isfinite(f["Step#0/x"][:]))
 PY
 
-# SIGINT: the run stops at the next frame with 130 and a readable file
+# SIGINT: the run stops at the next frame with 130 and a readable file. The signal is sent
+# once the file has grown past its first frames (the run is in its loop, its handler set),
+# not after a wall-clock delay that a loaded machine can spend still starting up.
 "$stf" run "$scene" -o int.h5 --duration 1000 --quiet --threads 1 2> int.txt &
 pid=$!
-sleep 2
+while kill -0 $pid 2>/dev/null && [ "$(stat -c %s int.h5 2>/dev/null || echo 0)" -le 100000 ]; do
+  sleep 0.05
+done
 kill -INT $pid
 wait $pid
 rc=$?

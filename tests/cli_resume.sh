@@ -4,15 +4,18 @@
 # attribute of the two files (frames, body series, statistics, metrics) compared byte for
 # byte, except wall_seconds. The reference runs take no checkpoint (--checkpoint off), so
 # the comparison also shows that taking checkpoints does not change a run.
-#   - springs + window history + a ball (ODE contacts): killed twice (the second time while
-#     resumed), resumed each time; frames written after the checkpoint are dropped and redone;
+#   - springs + window history + a ball (ODE contacts), a checkpoint every 10 frames: killed
+#     twice (the second time while resumed, after a checkpoint of the resumed run, every 7
+#     frames), resumed each time; frames written after the checkpoint are dropped and redone;
 #   - SIGTERM (exit 130, a checkpoint at the last frame), resumed as `stf run SCENE -o OUT
 #     --resume` with another thread count;
 #   - sum-of-exponentials history, and the Carreau-Yasuda model with its warm start;
 #   - refused, file untouched: another scene or --set, --set or --duration with --resume,
 #     a file without a checkpoint (exit 2); a finished run says so and exits 0.
 # The processes are frozen (SIGSTOP) once their file has grown past a size, then signalled,
-# so the stop lands mid-run whatever the machine's load.
+# so the stop lands mid-run whatever the machine's load: no step here waits for a wall-clock
+# time (the periodic checkpoints are taken every N frames, --checkpoint-frames, not every S
+# seconds of wall time, and the waits for a file to grow last as long as the run does).
 # Args: STF_BINARY PROJECT_DIR
 . "$(dirname "$0")/lib_cli.sh" cli_resume "$@"
 stf=$STF; src=$PROJ
@@ -49,10 +52,11 @@ if bad or frames < 10:
 PY
 same() { /usr/bin/python3 same.py "$1" "$2" || fail "$3: $2 differs from $1"; }
 
-# grows FILE past BYTES, then freezes PID: 0; 1 if PID ended first (or 40 s passed)
+# freeze_at FILE BYTES PID: waits until FILE has grown past BYTES, then freezes PID: 0; 1 if
+# PID ended first. No time limit: however slowly the machine runs it, the run either grows
+# its file or ends (and ctest's timeout catches a hang).
 freeze_at() {
-    for _ in $(seq 800); do
-        kill -0 "$3" 2>/dev/null || return 1
+    while kill -0 "$3" 2>/dev/null; do
         if [ "$(stat -c %s "$1" 2>/dev/null || echo 0)" -gt "$2" ]; then
             kill -STOP "$3"
             return 0
@@ -88,42 +92,59 @@ resume() {
 D=3
 "$stf" run "$scene" -o ref.h5 --duration $D --quiet --checkpoint off || fail "reference run"
 size=$(stat -c %s ref.h5)
-# a checkpoint every 0.5 s of wall time; the kill lands once frames follow the last one
-"$stf" run "$scene" -o kill.h5 --duration $D --checkpoint 0.5 --quiet &
-pid=$!
-freeze_at kill.h5 $((size / 3)) $pid || fail "kill.h5: the run ended before it was stopped"
-for _ in $(seq 40); do # (the frozen writer's file is consistent on disk: read without the lock)
-    HDF5_USE_FILE_LOCKING=FALSE /usr/bin/python3 -c '
+# after_checkpoint PID CKPT_MIN: PID (frozen, writing kill.h5) is let run in short spells
+# until the file holds a checkpoint taken after CKPT_MIN frames and a frame after it (the
+# frozen writer's file is consistent on disk: read without the lock; a read that lands
+# inside a flush fails and is tried again); 1 if PID ended first
+after_checkpoint() {
+    while kill -0 "$1" 2>/dev/null; do
+        HDF5_USE_FILE_LOCKING=FALSE /usr/bin/python3 -c '
 import h5py, sys
 f = h5py.File("kill.h5", "r")
-c = f["checkpoint.new" if "checkpoint.new" in f else "checkpoint"]
-sys.exit(0 if sum(1 for k in f if k.startswith("Step#")) > c["run.frames"][0] else 1)' 2>/dev/null &&
-        break
-    kill -CONT $pid; sleep 0.1; kill -STOP $pid
-done
+c = f["checkpoint.new" if "checkpoint.new" in f else "checkpoint"]["run.frames"][0]
+sys.exit(0 if int(sys.argv[1]) < c < sum(1 for k in f if k.startswith("Step#")) else 1)' "$2" \
+            2>/dev/null && return 0
+        kill -CONT "$1" 2>/dev/null; sleep 0.02; kill -STOP "$1" 2>/dev/null
+    done
+    return 1
+}
+# a checkpoint every 10 frames; the kill lands once frames follow the last one
+"$stf" run "$scene" -o kill.h5 --duration $D --checkpoint-frames 10 --quiet &
+pid=$!
+freeze_at kill.h5 $((size / 3)) $pid || fail "kill.h5: the run ended before it was stopped"
+after_checkpoint $pid 0 || fail "kill.h5: the run ended before a frame followed a checkpoint"
 kill -KILL $pid
 kill -CONT $pid 2>/dev/null
 wait $pid 2>/dev/null
-/usr/bin/python3 - <<'PY' || fail "kill.h5: no checkpoint, or no frame after it to drop"
+ckpt1=$(/usr/bin/python3 -c '
 import h5py
 f = h5py.File("kill.h5", "r")
 frames = sum(1 for k in f if k.startswith("Step#"))
 c = f["checkpoint"]
-assert 1 <= c["run.frames"][0] < frames, (c["run.frames"][0], frames)
+assert 10 <= c["run.frames"][0] < frames and c["run.frames"][0] % 10 == 0, (c["run.frames"][0], frames)
 assert c["sim.steps"][0] > 0 and "fluid.x" in c and "history.ring" in c and "springs.rest" in c
-print("kill.h5: %d frames, checkpoint after frame %d" % (frames, c["run.frames"][0]))
-PY
-"$stf" run --resume kill.h5 --quiet --checkpoint 0.3 &
+print(c["run.frames"][0])') || fail "kill.h5: no checkpoint, or no frame after it to drop"
+echo "kill.h5: checkpoint after frame ${ckpt1:-?}"
+# killed again while resumed, once the resumed run has taken a checkpoint of its own
+"$stf" run --resume kill.h5 --quiet --checkpoint-frames 7 &
 pid=$!
 freeze_at kill.h5 $((2 * size / 3)) $pid || fail "the resumed run ended before it was stopped"
+after_checkpoint $pid "${ckpt1:-0}" || fail "the resumed run ended before it took a checkpoint"
 kill -KILL $pid
+kill -CONT $pid 2>/dev/null
 wait $pid 2>/dev/null
+/usr/bin/python3 - "${ckpt1:-0}" <<'PY' || fail "kill.h5: no checkpoint of the resumed run"
+import h5py, sys
+f = h5py.File("kill.h5", "r")
+c = f["checkpoint"]["run.frames"][0]
+assert c > int(sys.argv[1]) and c % 7 == 0, (c, sys.argv[1])
+PY
 resume kill.h5
 same ref.h5 kill.h5 "kill -9 twice"
 "$stf" report kill.h5 >/dev/null || fail "stf report of the resumed file"
 
 # ---- SIGTERM: exit 130 with a checkpoint; resumed as SCENE -o OUT --resume, 2 threads -----
-stop_run TERM term.h5 $((size / 2)) run "$scene" -o term.h5 --duration $D --checkpoint 1000
+stop_run TERM term.h5 $((size / 2)) run "$scene" -o term.h5 --duration $D --checkpoint-frames 100000
 [ $rc -eq 130 ] || fail "SIGTERM: exit $rc, want 130"
 cp term.h5 stopped.h5 # for the refusals below
 "$stf" run "$scene" -o term.h5 --resume --threads 2 --quiet 2>resume.err ||
@@ -149,7 +170,9 @@ refuse "not an output" 2 "cannot resume" --resume "$scene" -o missing.h5
 [ "$(md5sum <stopped.h5)" = "$sum0" ] || fail "a refused resume changed the file"
 "$stf" run "$scene" -o nockpt.h5 --duration $D --quiet --checkpoint off &
 pid=$!
-freeze_at nockpt.h5 $((size / 3)) $pid && { kill -TERM $pid; kill -CONT $pid; }
+freeze_at nockpt.h5 $((size / 3)) $pid || fail "nockpt.h5: the run ended before it was stopped"
+kill -TERM $pid
+kill -CONT $pid
 wait $pid
 sum1=$(md5sum <nockpt.h5)
 refuse "no checkpoint" 2 "has no checkpoint" --resume nockpt.h5
@@ -161,7 +184,8 @@ refuse "finished" 0 "already ended" --resume ref.h5
 # ---- sum-of-exponentials history --------------------------------------------------------
 soe=(--set effects.history.mode=soe --set effects.history.terms=8)
 "$stf" run "$scene" -o soe_ref.h5 --duration 2 --quiet --checkpoint off "${soe[@]}" || fail "soe reference"
-stop_run TERM soe.h5 $(($(stat -c %s soe_ref.h5) / 2)) run "$scene" -o soe.h5 --duration 2 "${soe[@]}"
+stop_run TERM soe.h5 $(($(stat -c %s soe_ref.h5) / 2)) run "$scene" -o soe.h5 --duration 2 "${soe[@]}" \
+    --checkpoint-frames 100000
 [ $rc -eq 130 ] || fail "soe: exit $rc, want 130"
 resume soe.h5
 same soe_ref.h5 soe.h5 "soe history"

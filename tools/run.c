@@ -22,6 +22,8 @@ typedef struct run_args {
     int threads, quiet;
     int resume;        /* --resume: continue OUT.h5 from its checkpoint */
     double checkpoint; /* wall-clock s between checkpoints; < 0: none */
+    long checkpoint_frames; /* > 0: a checkpoint at every that many frames instead */
+    int checkpoint_given;   /* --checkpoint was on the command line */
 } run_args;
 
 enum { DEFAULT_CHECKPOINT_SECONDS = 60 };
@@ -71,6 +73,12 @@ static int parse_args(int argc, char **argv, run_args *a)
             if (!strcmp(argv[i], "off")) a->checkpoint = -1;
             else if (*end || !(a->checkpoint >= 0) || !isfinite(a->checkpoint))
                 return bad_flag("--checkpoint must be wall-clock seconds >= 0 or 'off', got", argv[i]);
+            a->checkpoint_given = 1;
+        } else if (!strcmp(s, "--checkpoint-frames") && more) {
+            char *end;
+            a->checkpoint_frames = strtol(argv[++i], &end, 10);
+            if (*end || a->checkpoint_frames < 1 || a->checkpoint_frames > 0x7fffffff)
+                return bad_flag("--checkpoint-frames must be a number of frames >= 1, got", argv[i]);
         } else if (!strcmp(s, "--resume")) a->resume = 1;
         else if (!strcmp(s, "--quiet") || !strcmp(s, "-q")) a->quiet = 1;
         else if (s[0] == '-') return bad_flag("unknown or incomplete option", s);
@@ -80,6 +88,11 @@ static int parse_args(int argc, char **argv, run_args *a)
     if (!a->scene) {
         fprintf(stderr, a->resume ? "stf: --resume needs OUT.h5, or SCENE [-o OUT.h5]\n"
                                   : "stf: no scene file given\n");
+        return 2;
+    }
+    if (a->checkpoint_frames > 0 && a->checkpoint_given) {
+        fprintf(stderr, "stf: --checkpoint-frames cannot be combined with --checkpoint (one "
+                        "trigger: every N frames, or every S seconds of wall-clock time)\n");
         return 2;
     }
     if (a->resume && a->duration > 0) {
@@ -420,11 +433,14 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
             else p.frames++;
             if (cy) frame_solver_stats(h, u);
             progress(a, sim, duration, omp_get_wtime() - t0);
-            /* a checkpoint every a->checkpoint wall seconds, and when interrupted: it only
-               reads the state, so the run's results do not depend on when it is taken */
+            /* a checkpoint every a->checkpoint wall seconds (or at every checkpoint_frames-th
+               frame in the file: the same frames whatever the machine's load), and when
+               interrupted: it only reads the state, so the run's results do not depend on when
+               it is taken */
             double now = omp_get_wtime();
-            if (status == 0 && s < steps && a->checkpoint >= 0 &&
-                (interrupted || now - last_checkpoint >= a->checkpoint)) {
+            int due = a->checkpoint_frames > 0 ? p.frames % a->checkpoint_frames == 0
+                                               : now - last_checkpoint >= a->checkpoint;
+            if (status == 0 && s < steps && a->checkpoint >= 0 && (interrupted || due)) {
                 if (write_checkpoint(h, sim, &p, now - t0) != 0) status = 2;
                 last_checkpoint = now;
             }

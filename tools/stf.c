@@ -17,9 +17,10 @@
 static const char usage_text[] =
     "usage:\n"
     "  stf run SCENE [-o OUT.h5] [--set KEY=VALUE]... [--unset KEY]... [--duration S]\n"
-    "              [--threads N] [--quiet] [--checkpoint S|off]\n"
+    "              [--threads N] [--quiet] [--checkpoint S|off | --checkpoint-frames N]\n"
     "              (--checkpoint: wall-clock seconds between checkpoints, default 60;\n"
-    "              0: every frame; also taken on SIGINT/SIGTERM)\n"
+    "              0: every frame; --checkpoint-frames: at every N-th frame of the file\n"
+    "              instead; also taken on SIGINT/SIGTERM)\n"
     "  stf run --resume OUT.h5 | stf run SCENE [-o OUT.h5] --resume   (continue a stopped\n"
     "              run from its checkpoint, bit-identical; scene from the file or checked)\n"
     "  stf check SCENE [-o OUT.h5] [--set ...] [--unset ...] [--duration S] [--threads N]\n"
