@@ -577,8 +577,9 @@ static void test_angular_momentum_exchange(void)
  * ends at x = xprev + dt v, so the displacement D acts at xprev); the Carreau-Yasuda
  * viscosity (Morris) pushes a pair along u_i - u_j, not along the line between them, and the
  * implicit solve hands the mean CG residual to every particle. Measured (the bounds are about
- * twice that): Clavet with every stage and the stick on the body 1.2e-3 (sphere) and 2.0e-3
- * (cube) of the scale in 50 ms; Carreau-Yasuda 0.47 and 0.41, nearly all of it the
+ * twice that): Clavet with every stage and the stick on the body 1.31e-3 (sphere) and
+ * 1.45e-3 (cube) of the scale in 50 ms (1.36e-3 and 1.45e-3 before the coupling kept it);
+ * Carreau-Yasuda 0.475 and 0.434, nearly all of it the
  * viscosity (mu0 = 0.05 m^2/s): a blob spinning alone at 20 rad/s loses 77% of its angular
  * momentum in 50 ms (0.1% with the Clavet stages), a rigid rotation the SPH Laplacian does
  * not see as one near the free surface. */
