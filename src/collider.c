@@ -531,6 +531,7 @@ static int collide_one(stf_fluid *f, const collider *c, int i, double dt, double
 static void take_collisions(collider *c, const stf_fluid *f, double dt)
 {
     double J[3] = {0, 0, 0}, M[3] = {0, 0, 0}, S[3] = {0, 0, 0}, m = f->mass;
+    double idt = 1.0 / dt, im = 1.0 / m;
     for (int i = 0; i < f->n; i++) {
         if (!f->hit[i]) continue;
         const double *p = f->dx + 3 * i, *xp = f->xprev + 3 * i, *x = f->x + 3 * i;
@@ -538,7 +539,7 @@ static void take_collisions(collider *c, const stf_fluid *f, double dt)
         double md[3], u[3]; /* m delta; velocity before the change, relative to vel */
         for (int a = 0; a < 3; a++) {
             md[a] = m * f->dproj[3 * i + a];
-            u[a] = (x[a] - xp[a]) / dt - p[a] / m - c->vel[a];
+            u[a] = (x[a] - xp[a]) * idt - p[a] * im - c->vel[a];
             J[a] -= p[a];
             S[a] += md[a];
         }
