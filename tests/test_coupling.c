@@ -575,14 +575,15 @@ static void test_angular_momentum_exchange(void)
  * quite. Clavet's springs and double density relaxation move a pair along the line between
  * its predicted positions, which turns it by m (v_i - v_j) x D per pair and step (the step
  * ends at x = xprev + dt v, so the displacement D acts at xprev); the Carreau-Yasuda
- * viscosity (Morris) pushes a pair along u_i - u_j, not along the line between them, and the
- * implicit solve hands the mean CG residual to every particle. Measured (the bounds are about
- * twice that): Clavet with every stage and the stick on the body 1.31e-3 (sphere) and
- * 1.45e-3 (cube) of the scale in 50 ms (1.36e-3 and 1.45e-3 before the coupling kept it);
- * Carreau-Yasuda 0.475 and 0.434, nearly all of it the
- * viscosity (mu0 = 0.05 m^2/s): a blob spinning alone at 20 rad/s loses 77% of its angular
- * momentum in 50 ms (0.1% with the Clavet stages), a rigid rotation the SPH Laplacian does
- * not see as one near the free surface. */
+ * viscosity (Morris) pushes a pair along u_i - u_j, not along the line between them.
+ * Measured (the bounds are about twice that), in 50 ms: Clavet with every stage and the
+ * stick on the body 1.31e-3 (sphere) and 1.45e-3 (cube) of the scale (1.36e-3 and 1.45e-3
+ * before the coupling kept it; with the sphere 6.4e-4 at dt = 0.5 ms and 3.7e-4 at 0.25 ms:
+ * it goes with dt). Carreau-Yasuda 0.475 and 0.434, nearly all of it the viscosity
+ * (mu0 = 0.05 m^2/s; the same with a CG tolerance of 1e-10): a blob spinning alone at
+ * 20 rad/s (no body) loses 98% of its angular momentum in 50 ms (10% at mu0 = 0.001 m^2/s,
+ * water; 0.16% with the Clavet stages), a rigid rotation the SPH Laplacian does not see as
+ * one near the free surface. */
 static void test_angular_momentum_blob(void)
 {
     stf_ode_attach_def st = stf_ode_default_attach_def();
