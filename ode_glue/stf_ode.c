@@ -241,15 +241,57 @@ static void apply_reaction(stf_ode *c, int k, double dt)
         dBodyGetRelPointPos(a->body, a->offset[0], a->offset[1], a->offset[2], p);
         for (int q = 0; q < 3; q++) cp[q] = p[q];
     }
-    const dReal *com = dBodyGetPosition(a->body);
-    double r[3] = {cp[0] - com[0], cp[1] - com[1], cp[2] - com[2]};
+    const dReal *com = dBodyGetPosition(a->body), *w = dBodyGetAngularVel(a->body);
+    double r[3] = {cp[0] - com[0], cp[1] - com[1], cp[2] - com[2]}, S[3], u[3];
     double tot[3] = {M[0] + r[1] * J[2] - r[2] * J[1], M[1] + r[2] * J[0] - r[0] * J[2],
                      M[2] + r[0] * J[1] - r[1] * J[0]};
+    /* The overlap removal's couple took the particles' velocities relative to the collider
+       origin's, vel = V + w × r; the shift (move_bodies) makes up m delta × V: the couple's
+       missing -S × (w × r) goes with it. */
+    stf_fluid_collider_shift(c->fluid, a->collider, S);
+    u[0] = w[1] * r[2] - w[2] * r[1], u[1] = w[2] * r[0] - w[0] * r[2], u[2] = w[0] * r[1] - w[1] * r[0];
+    tot[0] -= S[1] * u[2] - S[2] * u[1];
+    tot[1] -= S[2] * u[0] - S[0] * u[2];
+    tot[2] -= S[0] * u[1] - S[1] * u[0];
     for (int q = 0; q < 3; q++) F[q] = J[q] / dt, T[q] = tot[q] / dt;
-    if (J[0] != 0 || J[1] != 0 || J[2] != 0) {
+    if (J[0] != 0 || J[1] != 0 || J[2] != 0 || S[0] != 0 || S[1] != 0 || S[2] != 0) {
         dBodyEnable(a->body); /* a body the fluid pushes must not fall asleep */
         dBodyAddForce(a->body, F[0], F[1], F[2]);
         dBodyAddTorque(a->body, T[0], T[1], T[2]);
+    }
+}
+
+/* Moves each dynamic body by -shift / M, shift the mass-weighted overlap removal of its
+ * colliders (stf_fluid_collider_shift): particles pushed out of a body without momentum
+ * move the body back by as much as they carry, so the centre of mass of fluid and body
+ * stays where it was and the angular momentum M X × V with it. The body's momentum
+ * moves too, by the step's fluid impulse J, which dWorldStep adds before it moves the
+ * body: M s × (V + J/M) = -shift × V + s × J; a torque takes s × J back. */
+static void move_bodies(stf_ode *c, double dt)
+{
+    for (int k = 0; k < c->n; k++) {
+        dBodyID b = c->att[k].body;
+        int first = b && !dBodyIsKinematic(b);
+        for (int j = 0; j < k && first; j++) first = c->att[j].body != b;
+        if (!first) continue; /* once per dynamic body, with all its colliders */
+        double S[3] = {0, 0, 0}, J[3] = {0, 0, 0};
+        for (int j = k; j < c->n; j++) {
+            if (c->att[j].body != b) continue;
+            double s[3], Jj[3], Mj[3];
+            stf_fluid_collider_shift(c->fluid, c->att[j].collider, s);
+            stf_fluid_collider_impulse(c->fluid, c->att[j].collider, Jj, Mj);
+            for (int q = 0; q < 3; q++) S[q] += s[q], J[q] += Jj[q];
+        }
+        if (S[0] == 0 && S[1] == 0 && S[2] == 0) continue;
+        dMass m;
+        dBodyGetMass(b, &m);
+        const dReal *X = dBodyGetPosition(b);
+        double s[3] = {-S[0] / m.mass, -S[1] / m.mass, -S[2] / m.mass}, *T = c->torque + 3 * k;
+        double t[3] = {-(s[1] * J[2] - s[2] * J[1]) / dt, -(s[2] * J[0] - s[0] * J[2]) / dt,
+                       -(s[0] * J[1] - s[1] * J[0]) / dt};
+        dBodySetPosition(b, X[0] + s[0], X[1] + s[1], X[2] + s[2]);
+        dBodyAddTorque(b, t[0], t[1], t[2]);
+        for (int q = 0; q < 3; q++) T[q] += t[q];
     }
 }
 
@@ -297,6 +339,7 @@ int stf_ode_step(stf_ode *c, double dt)
     for (int k = 0; k < c->n; k++) sync_collider(c, &c->att[k]);
     if (stf_fluid_step(c->fluid, dt) != 0) return -1;
     for (int k = 0; k < c->n; k++) apply_reaction(c, k, dt);
+    move_bodies(c, dt);
     if (c->space) collide_space(c, c->space);
     dWorldStep(c->world, dt);
     dJointGroupEmpty(c->contacts);

@@ -12,7 +12,10 @@
  * collider, step the fluid, turn the impulses the fluid gave each body into force and torque
  * (J/dt) with dBodyAddForce/dBodyAddTorque, collide the space (ODE's own contacts, e.g. a ball
  * on the container floor), dWorldStep with the same dt, empty the contact group.
- * Momentum given to the particles equals momentum taken from the bodies. */
+ * Momentum given to the particles equals momentum taken from the bodies, and so does angular
+ * momentum: a particle pushed out of a body without a change of velocity (the overlap
+ * removal) moves the body back by m delta / M, and the body takes the angular momentum
+ * m delta × v (v relative to the body's centre) as a couple (stf_fluid_collider_shift). */
 #ifndef STF_ODE_H
 #define STF_ODE_H
 

@@ -480,8 +480,9 @@ static int maybe_near(const collider *c, const double x[3], double margin)
 /* Projects particle i out of collider c, stops its approach, and applies Coulomb friction:
  * the tangential slip relative to the surface drops by at most friction times the normal
  * velocity change, so the result does not depend on dt. Stores the impulse given to the
- * particle in imp. Returns 1 on contact. */
-static int collide_one(stf_fluid *f, const collider *c, int i, double dt, double *imp)
+ * particle in imp and the projection in proj. Returns 1 on contact. */
+static int collide_one(stf_fluid *f, const collider *c, int i, double dt, double *imp,
+                       double *proj)
 {
     double *x = f->x + 3 * i;
     double rp = 0.5 * f->def.spacing, nrm[3];
@@ -492,8 +493,9 @@ static int collide_one(stf_fluid *f, const collider *c, int i, double dt, double
        velocity: a particle squeezed between two solids is not shot out (it was, at 30 m/s,
        between a bowling ball and the floor). Velocity changes below carry the momentum. */
     for (int a = 0; a < 3; a++) {
-        x[a] += (rp - d) * nrm[a];
-        f->xprev[3 * i + a] += (rp - d) * nrm[a];
+        proj[3 * i + a] = (rp - d) * nrm[a];
+        x[a] += proj[3 * i + a];
+        f->xprev[3 * i + a] += proj[3 * i + a];
     }
     double old[3] = {x[0], x[1], x[2]};
     double jn = 0; /* normal velocity change, m/s */
@@ -519,6 +521,36 @@ static int collide_one(stf_fluid *f, const collider *c, int i, double dt, double
     return 1;
 }
 
+/* The collider's share of the collisions, in particle order. A particle's angular momentum
+ * m x × v moves by xprev × imp for its velocity change (xprev after the projection: the step
+ * ends at x = xprev + dt v), and by m delta × v for the projection delta, which moves it
+ * without changing its velocity v (before the velocity change). The collider takes back the
+ * impulses at xprev, and the projections as a shift sum(m delta) of its own (a dynamic body
+ * moves by -shift / M: the centre of mass stays) and a couple -m delta × (v - vel), vel the
+ * collider's velocity at its origin: with the shift's M (-shift / M) × vel = -sum m delta ×
+ * vel it makes up m delta × v exactly, and it depends on relative velocities only. */
+static void take_collisions(collider *c, const stf_fluid *f, double dt)
+{
+    double J[3] = {0, 0, 0}, M[3] = {0, 0, 0}, S[3] = {0, 0, 0}, m = f->mass;
+    double idt = 1.0 / dt, im = 1.0 / m;
+    for (int i = 0; i < f->n; i++) {
+        if (!f->hit[i]) continue;
+        const double *p = f->dx + 3 * i, *xp = f->xprev + 3 * i, *x = f->x + 3 * i;
+        double r[3] = {xp[0] - c->pos[0], xp[1] - c->pos[1], xp[2] - c->pos[2]};
+        double md[3], u[3]; /* m delta; velocity before the change, relative to vel */
+        for (int a = 0; a < 3; a++) {
+            md[a] = m * f->dproj[3 * i + a];
+            u[a] = (x[a] - xp[a]) * idt - p[a] * im - c->vel[a];
+            J[a] -= p[a];
+            S[a] += md[a];
+        }
+        M[0] -= r[1] * p[2] - r[2] * p[1] + md[1] * u[2] - md[2] * u[1];
+        M[1] -= r[2] * p[0] - r[0] * p[2] + md[2] * u[0] - md[0] * u[2];
+        M[2] -= r[0] * p[1] - r[1] * p[0] + md[0] * u[1] - md[1] * u[0];
+    }
+    for (int a = 0; a < 3; a++) c->impulse[a] += J[a], c->moment[a] += M[a], c->shift[a] += S[a];
+}
+
 void collide_all(stf_fluid *f, double dt)
 {
     int n = f->n;
@@ -526,8 +558,8 @@ void collide_all(stf_fluid *f, double dt)
         collider *c = &f->colliders[k];
         char *hit = f->hit;
 #pragma omp parallel for schedule(static)
-        for (int i = 0; i < n; i++) hit[i] = (char)collide_one(f, c, i, dt, f->dx);
-        collider_take_reaction(c, f->dx, f->x, hit, n);
+        for (int i = 0; i < n; i++) hit[i] = (char)collide_one(f, c, i, dt, f->dx, f->dproj);
+        take_collisions(c, f, dt);
     }
 }
 

@@ -15,6 +15,7 @@ typedef struct collider {
     double angvel[3]; /* rad/s */
     double impulse[3];/* N s given to the collider during the last step */
     double moment[3]; /* N m s, about pos */
+    double shift[3];  /* kg m: sum of m delta of the overlap removal (stf_fluid_collider_shift) */
     double bound;     /* m: radius of a sphere around pos holding the solid (<0: unbounded) */
 } collider;
 
@@ -30,7 +31,11 @@ int collider_container_faces(const collider *c, const double x[3], double d[5], 
 /* Velocity of the collider's material at world point x. */
 void collider_velocity_at(const collider *c, const double x[3], double v[3]);
 /* Adds the per-particle impulses imp (3n, N s, on the particles at positions x) to the
- * collider as their reaction, in particle order so the sum does not depend on threads. */
+ * collider as their reaction, in particle order so the sum does not depend on threads.
+ * x is where the impulse changes the particle's angular momentum: its position for a
+ * velocity change, its position at the step's start (xprev) for a position change D in the
+ * predict-relax stages (the step ends at x = xprev + dt v, so m x × v moves by
+ * xprev × m D / dt). */
 void collider_take_reaction(collider *c, const double *imp, const double *x, const char *hit,
                             int n);
 

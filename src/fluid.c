@@ -176,6 +176,7 @@ void stf_fluid_destroy(stf_fluid *f)
     free(f->v);
     free(f->xprev);
     free(f->dx);
+    free(f->dproj);
     free(f->hit);
     free(f->id);
     free(f->rho);
@@ -205,7 +206,8 @@ static int reserve(stf_fluid *f, int n)
     int cap = n > 2 * f->cap ? n : 2 * f->cap;
     if (grow((void **)&f->x, 3 * sizeof(double), cap) || grow((void **)&f->v, 3 * sizeof(double), cap) ||
         grow((void **)&f->xprev, 3 * sizeof(double), cap) ||
-        grow((void **)&f->dx, 3 * sizeof(double), cap) || grow((void **)&f->hit, 1, cap) ||
+        grow((void **)&f->dx, 3 * sizeof(double), cap) ||
+        grow((void **)&f->dproj, 3 * sizeof(double), cap) || grow((void **)&f->hit, 1, cap) ||
         grow((void **)&f->id, sizeof(int32_t), cap))
         return -1;
     if (has(f, STF_EFFECT_PRESSURE) &&
@@ -330,6 +332,11 @@ void stf_fluid_collider_impulse(const stf_fluid *f, int id, double impulse[3], d
     const collider *c = &f->colliders[id];
     memcpy(impulse, c->impulse, sizeof c->impulse);
     memcpy(moment, c->moment, sizeof c->moment);
+}
+
+void stf_fluid_collider_shift(const stf_fluid *f, int id, double shift[3])
+{
+    memcpy(shift, f->colliders[id].shift, sizeof f->colliders[id].shift);
 }
 
 int stf_fluid_remove_inside(stf_fluid *f, int id)
@@ -480,6 +487,7 @@ int stf_fluid_step(stf_fluid *f, double dt)
     for (int k = 0; k < f->ncolliders; k++) {
         memset(f->colliders[k].impulse, 0, sizeof f->colliders[k].impulse);
         memset(f->colliders[k].moment, 0, sizeof f->colliders[k].moment);
+        memset(f->colliders[k].shift, 0, sizeof f->colliders[k].shift);
     }
     if (f->cy) return cy_step(f, dt);
     if (has(f, STF_EFFECT_HISTORY) && f->hist.w == NULL && start_history(f, dt) != 0) goto oom;

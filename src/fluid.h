@@ -33,6 +33,7 @@ struct stf_fluid {
     int n, cap;
     double *x, *v, *xprev; /* 3n, interleaved */
     double *dx;            /* 3n scratch: displacements / impulses being gathered */
+    double *dproj;         /* 3n scratch: a collider's overlap removal per particle, m */
     char *hit;             /* n scratch: particle touched the collider being processed */
     int32_t *id;           /* persistent particle ids */
     int next_id;

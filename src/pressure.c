@@ -271,6 +271,8 @@ void pressure_relax(stf_fluid *f, double dt)
                     push[3 * i + a] *= to_impulse; /* the impulse the particle got */
                 }
         }
-        collider_take_reaction(col, f->dx, f->x, hit, n);
+        /* at xprev: a displacement turns the particle about its position at the step's
+           start (collider_take_reaction) */
+        collider_take_reaction(col, f->dx, f->xprev, hit, n);
     }
 }

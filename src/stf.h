@@ -222,6 +222,12 @@ int stf_fluid_remove_inside(stf_fluid *f, int id);
 /* The impulse (N s) the fluid gave collider id during the last step, and its moment about
  * the collider position (N m s). */
 void stf_fluid_collider_impulse(const stf_fluid *f, int id, double impulse[3], double moment[3]);
+/* The overlap removal's mass-weighted displacement (kg m) during the last step: the sum of
+ * m delta over the particles collider id pushed out of itself by delta without changing
+ * their velocity. A dynamic body of mass M moves by -shift / M to keep the centre of mass
+ * of fluid and body where it was (stf_ode does); the moment above then keeps the angular
+ * momentum, taking the particles' velocities relative to the collider's velocity. */
+void stf_fluid_collider_shift(const stf_fluid *f, int id, double shift[3]);
 /* Signed distance (m) from x to the collider's surface (> 0 outside). */
 double stf_fluid_collider_distance(const stf_fluid *f, int id, const double x[3]);
 
