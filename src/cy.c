@@ -36,6 +36,18 @@
  *   semi-definite (pair weights m (mu_i + mu_j) (r.grad W) / (rho_i rho_j (r^2 + 0.01 h^2))),
  *   so I - dt (viscous operator) is symmetric positive definite and CG applies. For the
  *   plane shear flows of the tests it is exact: div(mu grad v) = div(mu D) there.
+ * - viscosity_form central replaces Morris' pair force by Monaghan's (1997, 2005) central one,
+ *   a_i = sum_j (d + 2) m (mu_i + mu_j) / (rho_i rho_j) F_ij (x_ij . u_ij) x_ij / |x_ij|^2,
+ *   F_ij = (x_ij . grad W_ij) / (|x_ij|^2 + 0.01 h^2), d = 3: Morris' weight, along x_ij. For
+ *   uniform rho and nu that is 2 (d + 2) nu sum_j (m / rho) (u_ij . x_ij) grad W_ij /
+ *   (|x_ij|^2 + 0.01 h^2), whose Taylor expansion is nu (lap u + 2 grad div u): nu lap u for
+ *   divergence-free flow, as Morris' 2 nu sum_j (m / rho) F_ij u_ij (test_cy pins both
+ *   constants with a sinusoidal shear). The pair forces lie along x_ij, so angular momentum is
+ *   conserved and a rigid rotation feels none. The implicit operator's blocks are
+ *   w_ij x_ij x_ij^T (still symmetric negative semi-definite: CG applies); a wall's lattice
+ *   gives the 3 x 3 block sum_b over its mirror particles (tables by distance). Its fourth
+ *   moment over the neighbours is not isotropic on the cubic lattice at h = 2 spacings: shear
+ *   along the lattice axes sees 0.69 nu (0.93 at 3 spacings, as Morris at 4).
  * - The projection is Jacobi with the full k_i of Eq. 21 (no relaxation), from zero
  *   pressure each step, as Algorithm 1, unless the scene asks for relaxation and warm_start
  *   (see pressure_project); cfl splits a step into CFL-limited substeps (cy_step).
