@@ -73,12 +73,15 @@ static void test_block_at_rest(void)
  * loop gathers per particle; the sums over particles are serial). */
 static uint64_t falling_block_hash_far(int threads, int far)
 {
+    int form = far > 1 ? STF_VISCOSITY_CENTRAL : STF_VISCOSITY_MORRIS;
+    far &= 1;
     stf_set_threads(threads);
     stf_fluid_def d = stf_default_fluid_def();
     d.model = STF_MODEL_CARREAU_YASUDA;
     d.effects = STF_EFFECT_GRAVITY;
     d.spacing = 0.02, d.density = 1000, d.jitter = 0;
     d.cy.mu0 = 0.5, d.cy.mu_inf = 0.001, d.cy.n = 0.5;
+    d.cy.viscosity_form = form;
     stf_fluid *f = make(&d);
     if (!f) return 0;
     stf_collider_def c = stf_default_collider_def();
@@ -100,11 +103,11 @@ static uint64_t falling_block_hash_far(int threads, int far)
 
 static void test_threads(void)
 {
-    for (int far = 0; far < 2; far++) {
+    for (int far = 0; far < 3; far++) { /* 2: dense lists, viscosity_form central */
         uint64_t h1 = falling_block_hash_far(1, far), h2 = falling_block_hash_far(2, far),
                  h3 = falling_block_hash_far(3, far);
         CHECK(h1 == h2 && h1 == h3 && h1 != 0, "%s: 1, 2 and 3 threads differ: %llx %llx %llx",
-              far ? "shared grid" : "dense lists", (unsigned long long)h1,
+              far == 2 ? "central" : far ? "shared grid" : "dense lists", (unsigned long long)h1,
               (unsigned long long)h2, (unsigned long long)h3);
     }
     stf_set_threads(1);
