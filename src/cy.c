@@ -36,6 +36,18 @@
  *   semi-definite (pair weights m (mu_i + mu_j) (r.grad W) / (rho_i rho_j (r^2 + 0.01 h^2))),
  *   so I - dt (viscous operator) is symmetric positive definite and CG applies. For the
  *   plane shear flows of the tests it is exact: div(mu grad v) = div(mu D) there.
+ * - viscosity_form central replaces Morris' pair force by Monaghan's (1997, 2005) central one,
+ *   a_i = sum_j (d + 2) m (mu_i + mu_j) / (rho_i rho_j) F_ij (x_ij . u_ij) x_ij / |x_ij|^2,
+ *   F_ij = (x_ij . grad W_ij) / (|x_ij|^2 + 0.01 h^2), d = 3: Morris' weight, along x_ij. For
+ *   uniform rho and nu that is 2 (d + 2) nu sum_j (m / rho) (u_ij . x_ij) grad W_ij /
+ *   (|x_ij|^2 + 0.01 h^2), whose Taylor expansion is nu (lap u + 2 grad div u): nu lap u for
+ *   divergence-free flow, as Morris' 2 nu sum_j (m / rho) F_ij u_ij (test_cy pins both
+ *   constants with a sinusoidal shear). The pair forces lie along x_ij, so angular momentum is
+ *   conserved and a rigid rotation feels none. The implicit operator's blocks are
+ *   w_ij x_ij x_ij^T (still symmetric negative semi-definite: CG applies); a wall's lattice
+ *   gives the 3 x 3 block sum_b over its mirror particles (tables by distance). Its fourth
+ *   moment over the neighbours is not isotropic on the cubic lattice at h = 2 spacings: shear
+ *   along the lattice axes sees 0.69 nu (0.93 at 3 spacings, as Morris at 4).
  * - The projection is Jacobi with the full k_i of Eq. 21 (no relaxation), from zero
  *   pressure each step, as Algorithm 1, unless the scene asks for relaxation and warm_start
  *   (see pressure_project); cfl splits a step into CFL-limited substeps (cy_step).
@@ -79,7 +91,10 @@ typedef struct cy_state {
     double *wv;          /* 9n: sum over walls of v_wall (x) m grad W (row-major) */
     double *nu;          /* n: kinematic viscosity of the step, m^2/s */
     double *b, *dv, *r, *p, *Ap; /* 3n each: viscosity solve */
-    float *lap;          /* per pair (as pair): m (r.grad W)/(r^2 + 0.01 h^2), kg/m^5 */
+    float *lap;          /* per pair (as pair): m (r.grad W)/(r^2 + 0.01 h^2), kg/m^5; the
+                            central form: (d + 2) m / (S (r^2 + 0.01 h^2)), S = (dW/dr) / r,
+                            so that it times g g^T (g = grad W = S r) is (d + 2) m S r r^T /
+                            (r^2 + 0.01 h^2) (0 where S = 0) */
     double wall_lap[WALL_BINS + 1]; /* the same summed over a wall's lattice, with Morris'
                                        mirror velocity (see tables), by distance */
     /* The quarter-space behind two perpendicular faces of a container, by the distances to
@@ -89,7 +104,15 @@ typedef struct cy_state {
     double quad_g2[WALL_BINS + 1][WALL_BINS + 1];
     double quad_lap[WALL_BINS + 1][WALL_BINS + 1];
     double *lw;          /* n: sum over walls of wall_lap */
-    double *lwv;         /* 3n: sum over walls of wall_lap * v_wall */
+    double *lwv;         /* 3n: sum over walls of wall_lap * v_wall (central: of M_w v_wall) */
+    /* The central form (viscosity_form central): a wall's lattice gives the 3 x 3 block
+       M_w = sum_b (d + 2) m F_ib (1 + mirror ratio) x_ib x_ib^T / |x_ib|^2, F = (r.grad W)/
+       (r^2 + 0.01 h^2): for a half-space, wall_cn n n^T + wall_ct (I - n n^T) by distance;
+       for a container's quarter-space, in the frame of the two normals and the edge */
+    double wall_cn[WALL_BINS + 1], wall_ct[WALL_BINS + 1];
+    double quad_c11[WALL_BINS + 1][WALL_BINS + 1], quad_c22[WALL_BINS + 1][WALL_BINS + 1];
+    double quad_c12[WALL_BINS + 1][WALL_BINS + 1], quad_cee[WALL_BINS + 1][WALL_BINS + 1];
+    double *lwm;         /* 9n (central): sum over walls of M_w, row-major */
     cy_pair *pair;       /* off[n]: each particle's neighbours within h, compact (CSR) */
     int32_t *off;        /* n + 1: particle i's pairs are pair[off[i] .. off[i + 1]) */
     size_t pair_cap;
@@ -178,6 +201,8 @@ int cy_check_def(const stf_fluid_def *d, char *err, size_t errlen)
              c->max_pressure_iterations);
     if (c->viscosity_solver != STF_VISCOSITY_IMPLICIT && c->viscosity_solver != STF_VISCOSITY_EXPLICIT)
         FAIL("viscosity_solver: must be implicit or explicit (got %d)", c->viscosity_solver);
+    if (c->viscosity_form != STF_VISCOSITY_MORRIS && c->viscosity_form != STF_VISCOSITY_CENTRAL)
+        FAIL("viscosity_form: must be morris or central (got %d)", c->viscosity_form);
     if (!(c->cg_tolerance > 0 && c->cg_tolerance < 1))
         FAIL("cg_tolerance: must be in (0,1) (got %g)", c->cg_tolerance);
     if (c->max_cg_iterations < 1) FAIL("max_cg_iterations: must be >= 1 (got %d)", c->max_cg_iterations);
@@ -222,7 +247,7 @@ static void tables(stf_fluid *f, cy_state *c)
                 sum += kernel_w(s * sqrt((double)(a * a + b * b + e * e)), h);
     c->rho0 = m * sum;
     for (int bin = 0; bin <= WALL_BINS; bin++) {
-        double d = h * bin / WALL_BINS, rho = 0, grad = 0, lap = 0;
+        double d = h * bin / WALL_BINS, rho = 0, grad = 0, lap = 0, cn = 0, ct = 0;
         double dd = d > 0.05 * s ? d : 0.05 * s;
         for (int layer = 0; layer <= k; layer++)
             for (int a = -k; a <= k; a++)
@@ -236,17 +261,24 @@ static void tables(stf_fluid *f, cy_state *c)
                        (v_i - v_w), d_b its depth in the solid, so the velocity is zero on the
                        surface itself; d_b/d capped at 1.5 */
                     double depth = s * (0.5 + layer), ratio = depth / dd;
-                    lap += m * kernel_dw(r, h) * r / (r * r + 0.01 * h * h) *
-                           (1 + (ratio < 1.5 ? ratio : 1.5));
+                    double l = m * kernel_dw(r, h) * r / (r * r + 0.01 * h * h) *
+                               (1 + (ratio < 1.5 ? ratio : 1.5));
+                    lap += l;
+                    /* the central form's block: (d + 2) l x x^T / r^2, normal and one
+                       tangential component (the two tangential ones are equal) */
+                    cn += 5 * l * dz * dz / (r * r);
+                    ct += 5 * l * 0.5 * (dx * dx + dy * dy) / (r * r);
                 }
         c->wall_lap[bin] = lap;
+        c->wall_cn[bin] = cn;
+        c->wall_ct[bin] = ct;
         c->wall_rho[bin] = rho;
         c->wall_grad[bin] = grad;
     }
     for (int b1 = 0; b1 <= WALL_BINS; b1++)
         for (int b2 = 0; b2 <= WALL_BINS; b2++) {
             double d1 = h * b1 / WALL_BINS, d2 = h * b2 / WALL_BINS;
-            double rho = 0, g1 = 0, g2 = 0, lap = 0;
+            double rho = 0, g1 = 0, g2 = 0, lap = 0, c11 = 0, c22 = 0, c12 = 0, cee = 0;
             for (int l1 = 0; l1 <= k; l1++)
                 for (int l2 = 0; l2 <= k; l2++)
                     for (int a = -k; a <= k; a++) {
@@ -257,18 +289,27 @@ static void tables(stf_fluid *f, cy_state *c)
                         g1 += -m * kernel_dw(r, h) * z1 / r;
                         g2 += -m * kernel_dw(r, h) * z2 / r;
                         /* mirror velocity ratio at its cap (the corner is deep in the solid) */
-                        lap += m * kernel_dw(r, h) * r / (r * r + 0.01 * h * h) * 2.5;
+                        double l = m * kernel_dw(r, h) * r / (r * r + 0.01 * h * h) * 2.5;
+                        lap += l;
+                        c11 += 5 * l * z1 * z1 / (r * r);
+                        c22 += 5 * l * z2 * z2 / (r * r);
+                        c12 += 5 * l * z1 * z2 / (r * r);
+                        cee += 5 * l * e * e / (r * r);
                     }
             c->quad_rho[b1][b2] = rho;
             c->quad_g1[b1][b2] = g1;
             c->quad_g2[b1][b2] = g2;
             c->quad_lap[b1][b2] = lap;
+            c->quad_c11[b1][b2] = c11;
+            c->quad_c22[b1][b2] = c22;
+            c->quad_c12[b1][b2] = c12;
+            c->quad_cee[b1][b2] = cee;
         }
 }
 
 /* The quarter-space terms at distances d1, d2 (< h) from two perpendicular faces (bilinear). */
 static void quad_at(const cy_state *c, double d1, double d2, double h, double *rho, double *g1,
-                    double *g2, double *lap)
+                    double *g2, double *lap, double qc[4])
 {
     double u = d1 / h * WALL_BINS, w = d2 / h * WALL_BINS;
     u = u < 0 ? 0 : u > WALL_BINS - 1e-9 ? WALL_BINS - 1e-9 : u;
@@ -281,6 +322,10 @@ static void quad_at(const cy_state *c, double d1, double d2, double h, double *r
     *g1 = BILIN(quad_g1);
     *g2 = BILIN(quad_g2);
     *lap = BILIN(quad_lap);
+    qc[0] = BILIN(quad_c11);
+    qc[1] = BILIN(quad_c22);
+    qc[2] = BILIN(quad_c12);
+    qc[3] = BILIN(quad_cee);
 #undef BILIN
 }
 
@@ -303,7 +348,7 @@ void cy_free(stf_fluid *f)
     if (!c) return;
     void *arrays[] = {c->rho, c->S,   c->kappa,  c->ktot,   c->rhostar, c->gw,  c->qw,  c->wv,
                       c->nu,  c->b,   c->dv,     c->r,      c->p,       c->Ap,  c->kr,  c->irho,
-                      c->mu,  c->lw,  c->lwv,    c->sx,     c->pair,    c->lap, c->off, c->cstart,
+                      c->mu,  c->lw,  c->lwv, c->lwm,    c->sx,     c->pair,    c->lap, c->off, c->cstart,
                       c->cellof, c->sid, c->nbt, c->nbc,    c->hit};
     for (size_t k = 0; k < sizeof arrays / sizeof *arrays; k++) free(arrays[k]);
     free(c);
@@ -369,7 +414,8 @@ static int reserve(stf_fluid *f, int n)
         grow(&c->rho, N) || grow(&c->S, N) || grow(&c->kappa, N) || grow(&c->ktot, N) ||
         grow(&c->rhostar, N) || grow(&c->gw, 3 * N) || grow(&c->qw, N) || grow(&c->wv, 9 * N) ||
         grow(&c->nu, N) || grow(&c->b, 3 * N) || grow(&c->dv, 3 * N) || grow(&c->r, 3 * N) ||
-        grow(&c->p, 3 * N) || grow(&c->Ap, 3 * N) || grow(&c->lw, N) || grow(&c->lwv, 3 * N))
+        grow(&c->p, 3 * N) || grow(&c->Ap, 3 * N) || grow(&c->lw, N) || grow(&c->lwv, 3 * N) ||
+        grow(&c->lwm, 9 * N))
         return -1;
     char *hit = realloc(c->hit, N);
     if (!hit) return -1;
@@ -381,12 +427,13 @@ static int reserve(stf_fluid *f, int n)
 /* ----------------------------------------------------------------------------- walls */
 
 /* Wall sums at distance d from a flat wall: density and the normal gradient magnitude. */
-static void wall_at(const cy_state *c, double d, double h, double *rho, double *grad, double *lap)
+static void wall_at(const cy_state *c, double d, double h, double *rho, double *grad, double *lap,
+                    double *cn, double *ct)
 {
     double u = d / h * WALL_BINS;
     if (u < 0) u = 0;
     if (u >= WALL_BINS) {
-        *rho = *grad = *lap = 0;
+        *rho = *grad = *lap = *cn = *ct = 0;
         return;
     }
     int b = (int)u;
@@ -394,15 +441,18 @@ static void wall_at(const cy_state *c, double d, double h, double *rho, double *
     *rho = (1 - t) * c->wall_rho[b] + t * c->wall_rho[b + 1];
     *grad = (1 - t) * c->wall_grad[b] + t * c->wall_grad[b + 1];
     *lap = (1 - t) * c->wall_lap[b] + t * c->wall_lap[b + 1];
+    *cn = (1 - t) * c->wall_cn[b] + t * c->wall_cn[b + 1];
+    *ct = (1 - t) * c->wall_ct[b] + t * c->wall_ct[b + 1];
 }
 
 /* Collider k's wall term at particle i: returns 1 within h, with G = sum_b m grad W_ib
- * (pointing into the solid), the density it adds and the solid's velocity there. A container
+ * (pointing into the solid), the density it adds, the viscous terms (Morris' lap, the
+ * central form's block M, row-major) and the solid's velocity there. A container
  * counts as its five faces, each a half-space of lattice (its signed distance alone would
  * show a particle near an edge only the nearer face: too little density there, and a jump
  * where the nearer face changes). */
 static int wall_term(const stf_fluid *f, const collider *col, int i, double G[3], double *rho,
-                     double *lap, double vb[3])
+                     double *lap, double M[9], double vb[3])
 {
     const double *x = f->x + 3 * i;
     double h = f->h;
@@ -421,12 +471,16 @@ static int wall_term(const stf_fluid *f, const collider *col, int i, double G[3]
     }
     *rho = *lap = 0;
     G[0] = G[1] = G[2] = 0;
+    memset(M, 0, 9 * sizeof *M);
     for (int k = 0; k < faces; k++) {
         if (fd[k] >= h) continue;
-        double r, g, l;
-        wall_at(f->cy, fd[k], h, &r, &g, &l);
+        double r, g, l, cn, ct;
+        wall_at(f->cy, fd[k], h, &r, &g, &l, &cn, &ct);
         *rho += r;
         *lap += l;
+        for (int a = 0; a < 3; a++)
+            for (int b = 0; b < 3; b++)
+                M[3 * a + b] += (cn - ct) * fn[k][a] * fn[k][b] + (a == b ? ct : 0);
         for (int a = 0; a < 3; a++) G[a] -= g * fn[k][a];
         hit = 1;
     }
@@ -435,10 +489,16 @@ static int wall_term(const stf_fluid *f, const collider *col, int i, double G[3]
     for (int e = 0; faces == 5 && e < 8; e++) {
         int p = pairs[e][0], q = pairs[e][1];
         if (fd[p] >= h || fd[q] >= h) continue;
-        double r, g1, g2, l;
-        quad_at(f->cy, fd[p], fd[q], h, &r, &g1, &g2, &l);
+        double r, g1, g2, l, qc[4];
+        quad_at(f->cy, fd[p], fd[q], h, &r, &g1, &g2, &l, qc);
         *rho -= r;
         *lap -= l;
+        /* c11 n1 n1^T + c22 n2 n2^T + c12 (n1 n2^T + n2 n1^T) + cee (I - n1 n1^T - n2 n2^T) */
+        const double *n1 = fn[p], *n2 = fn[q];
+        for (int a = 0; a < 3; a++)
+            for (int b = 0; b < 3; b++)
+                M[3 * a + b] -= (qc[0] - qc[3]) * n1[a] * n1[b] + (qc[1] - qc[3]) * n2[a] * n2[b] +
+                                qc[2] * (n1[a] * n2[b] + n2[a] * n1[b]) + (a == b ? qc[3] : 0);
         for (int a = 0; a < 3; a++) G[a] += g1 * fn[p][a] + g2 * fn[q][a];
     }
     if (hit) collider_velocity_at(col, x, vb);
@@ -449,15 +509,25 @@ static void walls_one(stf_fluid *f, int i)
 {
     cy_state *c = f->cy;
     double *gw = c->gw + 3 * i, *wv = c->wv + 9 * i, *lwv = c->lwv + 3 * i, rho = 0, q = 0, lw = 0;
+    double *lwm = c->lwm + 9 * i;
+    int central = f->def.cy.viscosity_form == STF_VISCOSITY_CENTRAL;
     memset(gw, 0, 3 * sizeof *gw);
     memset(wv, 0, 9 * sizeof *wv);
     memset(lwv, 0, 3 * sizeof *lwv);
+    memset(lwm, 0, 9 * sizeof *lwm);
     for (int k = 0; k < f->ncolliders; k++) {
-        double G[3] = {0, 0, 0}, r = 0, lap = 0, vb[3] = {0, 0, 0};
-        if (!wall_term(f, &f->colliders[k], i, G, &r, &lap, vb)) continue;
+        double G[3] = {0, 0, 0}, r = 0, lap = 0, M[9], vb[3] = {0, 0, 0};
+        if (!wall_term(f, &f->colliders[k], i, G, &r, &lap, M, vb)) continue;
         rho += r;
         lw += lap;
-        for (int a = 0; a < 3; a++) lwv[a] += lap * vb[a];
+        if (central)
+            for (int a = 0; a < 3; a++)
+                for (int b = 0; b < 3; b++) {
+                    lwm[3 * a + b] += M[3 * a + b];
+                    lwv[a] += M[3 * a + b] * vb[b];
+                }
+        else
+            for (int a = 0; a < 3; a++) lwv[a] += lap * vb[a];
         for (int a = 0; a < 3; a++) {
             gw[a] += G[a];
             q += vb[a] * G[a];
@@ -644,7 +714,8 @@ static void density_one(stf_fluid *f, int i)
     int cnt = c->dense ? c->nbc[i] : f->grid.count[i];
     cy_pair *pr = c->pair + c->off[i];
     float *lp = c->lap + c->off[i];
-    int periodic = is_periodic(f);
+    int periodic = is_periodic(f), central = f->def.cy.viscosity_form == STF_VISCOSITY_CENTRAL;
+    double eps = 0.01 * h * h;
     const double *x = f->x, *xi = x + 3 * i;
     double R[3][CHUNK], W[CHUNK], S[CHUNK], L[CHUNK];
     for (int k0 = 0; k0 < cnt; k0 += CHUNK) {
@@ -669,6 +740,7 @@ static void density_one(stf_fluid *f, int i)
                 l2 += R[a3][k] * R[a3][k];
             }
             sq += m * m * s * s * l2;
+            if (central) lp[k0 + k] = s != 0 ? (float)(5 * m / (s * (l2 + eps))) : 0.0f;
         }
     }
     c->rho[i] = rho;
@@ -825,6 +897,25 @@ static void viscous_one(const stf_fluid *f, const double *u, int i, int with_wal
     const float *lp = c->lap + c->off[i];
     const double *ui = u + 3 * i;
     const double *mu = c->mu, *irho = c->irho;
+    if (f->def.cy.viscosity_form == STF_VISCOSITY_CENTRAL) {
+        /* a_i = sum_j (d + 2) m (mu_i + mu_j) / (rho_i rho_j) F_ij (x_ij . u_ij) x_ij / r^2
+           (F as Morris'), i.e. lp g (g . u_ij) with g = grad W_ij along x_ij */
+        for (int k = 0, cnt = c->off[i + 1] - c->off[i]; k < cnt; k++) {
+            int j = pr[k].j;
+            const double *uj = u + 3 * j;
+            const float *g = pr[k].g;
+            double gu = g[0] * (ui[0] - uj[0]) + g[1] * (ui[1] - uj[1]) + g[2] * (ui[2] - uj[2]);
+            double w = lp[k] * (mi + mu[j]) * irho[j] * gu; /* / rho_i below */
+            for (int e = 0; e < 3; e++) a[e] += w * g[e];
+        }
+        const double *M = c->lwm + 9 * i;
+        double ww = wall_visc(c, i);
+        for (int e = 0; e < 3; e++)
+            out[3 * i + e] = a[e] * irho[i] +
+                             ww * (M[3 * e] * ui[0] + M[3 * e + 1] * ui[1] + M[3 * e + 2] * ui[2] -
+                                   (with_walls ? c->lwv[3 * i + e] : 0));
+        return;
+    }
     for (int k = 0, cnt = c->off[i + 1] - c->off[i]; k < cnt; k++) {
         int j = pr[k].j;
         const double *uj = u + 3 * j;
@@ -972,10 +1063,19 @@ static void wall_reactions(stf_fluid *f, double dt)
         collider *col = &f->colliders[k];
 #pragma omp parallel for schedule(static)
         for (int i = 0; i < n; i++) {
-            double G[3] = {0, 0, 0}, rho = 0, lap = 0, vb[3] = {0, 0, 0};
-            c->hit[i] = (char)wall_term(f, col, i, G, &rho, &lap, vb);
+            double G[3] = {0, 0, 0}, rho = 0, lap = 0, M[9], vb[3] = {0, 0, 0};
+            c->hit[i] = (char)wall_term(f, col, i, G, &rho, &lap, M, vb);
             if (!c->hit[i]) continue;
             double ki = c->ktot[i] / c->rho[i];
+            if (f->def.cy.viscosity_form == STF_VISCOSITY_CENTRAL) {
+                double ww = wall_visc(c, i), du[3];
+                for (int a = 0; a < 3; a++) du[a] = c->r[3 * i + a] - vb[a];
+                for (int a = 0; a < 3; a++) {
+                    double Mu = M[3 * a] * du[0] + M[3 * a + 1] * du[1] + M[3 * a + 2] * du[2];
+                    c->dv[3 * i + a] = f->mass * dt * (ww * Mu - ki * G[a]);
+                }
+                continue;
+            }
             double ww = wall_visc(c, i) * lap;
             for (int a = 0; a < 3; a++)
                 c->dv[3 * i + a] = f->mass * dt * (ww * (c->r[3 * i + a] - vb[a]) - ki * G[a]);
@@ -1154,12 +1254,14 @@ int cy_describe(const stf_fluid *f, char *buf, size_t len)
                     "model: carreau_yasuda\nmu0: %.9g  # m^2/s\nmu_inf: %.9g  # m^2/s\n"
                     "K: %.9g  # s\nalpha: %.9g\nn: %.9g\neta: %.9g\n"
                     "min_pressure_iterations: %d\nmax_pressure_iterations: %d\n"
-                    "viscosity_solver: %s\ncg_tolerance: %.9g\nmax_cg_iterations: %d\n"
+                    "viscosity_solver: %s\nviscosity_form: %s\ncg_tolerance: %.9g\n"
+                    "max_cg_iterations: %d\n"
                     "cfl: %.9g\ndt_max: %.9g  # s\nwarm_start: %.9g\nrelaxation: %.9g\n"
                     "rest_density_cy: %.9g  # kg/m^3, kernel sum of the lattice\n",
                     c->mu0, c->mu_inf, c->K, c->alpha, c->n, c->eta, c->min_pressure_iterations,
                     c->max_pressure_iterations,
                     c->viscosity_solver == STF_VISCOSITY_EXPLICIT ? "explicit" : "implicit",
+                    c->viscosity_form == STF_VISCOSITY_CENTRAL ? "central" : "morris",
                     c->cg_tolerance, c->max_cg_iterations, c->cfl, c->dt_max, c->warm_start,
                     c->relaxation > 0 ? c->relaxation : 1.0, f->cy ? f->cy->rho0 : 0.0);
 }

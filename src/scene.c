@@ -515,6 +515,7 @@ static int parse_history(loader *L, const mapv *h)
 static int parse_carreau_yasuda(loader *L, const mapv *p)
 {
     static const char *const solvers[] = {"implicit", "explicit", NULL};
+    static const char *const forms[] = {"morris", "central", NULL};
     stf_cy_def *c = &L->s->fluid.cy;
     long it;
     int r, solver;
@@ -543,6 +544,10 @@ static int parse_carreau_yasuda(loader *L, const mapv *p)
     if (get_choice(L, p, "viscosity_solver", solvers, &solver) < 0) return SCENE_BAD;
     if (has(p, "viscosity_solver"))
         c->viscosity_solver = solver ? STF_VISCOSITY_EXPLICIT : STF_VISCOSITY_IMPLICIT;
+    int form;
+    if (get_choice(L, p, "viscosity_form", forms, &form) < 0) return SCENE_BAD;
+    if (has(p, "viscosity_form"))
+        c->viscosity_form = form ? STF_VISCOSITY_CENTRAL : STF_VISCOSITY_MORRIS;
     return 0;
 }
 
@@ -583,7 +588,7 @@ static const char *const stick_keys[] = {"stick", NULL};
 static const char *const cy_keys[] = {"mu0", "mu_inf", "K", "alpha", "n", "eta",
                                       "min_pressure_iterations", "max_pressure_iterations",
                                       "viscosity_solver", "cg_tolerance", "max_cg_iterations",
-                                      "cfl", "dt_max", "warm_start", "relaxation", NULL};
+                                      "cfl", "dt_max", "warm_start", "relaxation", "viscosity_form", NULL};
 
 static int parse_effects(loader *L, const mapv *top)
 {

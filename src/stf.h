@@ -56,6 +56,14 @@ enum stf_viscosity_solver {
     STF_VISCOSITY_EXPLICIT = 1, /* forward Euler (for comparison; limited by dt ~ h^2/nu) */
 };
 
+/* The SPH viscous operator of the Carreau-Yasuda model (both approximate nu lap(u) for a
+ * divergence-free flow of uniform viscosity). */
+enum stf_viscosity_form {
+    STF_VISCOSITY_MORRIS = 0,  /* Morris et al. (1997): pair forces along u_i - u_j */
+    STF_VISCOSITY_CENTRAL = 1, /* Monaghan's 2 (d + 2) form: pair forces along x_i - x_j,
+                                  conserving angular momentum (zero for rigid motion) */
+};
+
 /* Carreau-Yasuda SPH (second paper): cubic spline kernel of support h, per-particle
  * stiffness pressure projection (Eq. 11-21), viscosity nu(g) = nu_inf + (nu0 - nu_inf)
  * (1 + (K g)^a)^((n-1)/a) (Eq. 3) on the shear rate g = sqrt(D:D / 2), D = grad v + grad v^T. */
@@ -82,6 +90,7 @@ typedef struct stf_cy_def {
                               then only add pressure, dimensionless */
     double relaxation;     /* (0,1]: each Jacobi iteration applies this fraction of the k_i of
                               Eq. 21 (0 means 1, the paper's), dimensionless */
+    int viscosity_form;    /* enum stf_viscosity_form (default morris) */
 } stf_cy_def;
 
 /* What the Carreau-Yasuda solver did in the last step (zeros for the Clavet model). */

@@ -37,6 +37,8 @@ bad_edit neg_n cy_falling_column 's/n: 1, eta: 0.01}/n: -1, eta: 0.01}/' 'carrea
     "[0-9]+: effects.carreau_yasuda.n: must be > 0"
 bad_edit bad_solver cy_collapse_thickening 's/viscosity_solver: implicit/viscosity_solver: sideways/' 'viscosity_solver: sideways' \
     "[0-9]+: effects.carreau_yasuda.viscosity_solver: expected one of: implicit, explicit"
+bad_edit bad_form cy_collapse_thickening 's/viscosity_solver: implicit}/viscosity_solver: implicit, viscosity_form: sideways}/' 'viscosity_form: sideways' \
+    "[0-9]+: effects.carreau_yasuda.viscosity_form: expected one of: morris, central"
 bad_edit bad_cfl dam_break_3d 's/cfl: 0.5,/cfl: 1.5,/' 'cfl: 1.5' "[0-9]+: effects.carreau_yasuda.cfl: "
 bad_edit bad_dtmax dam_break_3d 's/dt_max: 0.005,/dt_max: -1,/' 'dt_max: -1' "[0-9]+: effects.carreau_yasuda.dt_max: "
 bad_edit mixed cy_falling_column 's/  gravity: {g: \[0, 0, -9.81\]}/  gravity: {g: [0, 0, -9.81]}\n  pressure: {k: 1000}/' '  pressure:' \

@@ -8,6 +8,7 @@
  *   cy_validate stability     dt = 3e-4 s: the explicit viscosity blows up (detected, with
  *                             a message naming the step), the implicit one stays bounded
  *   cy_validate dambreak      a 2:1 dam break against Martin & Moyce (1952)
+ * A last argument `central` runs the case with viscosity_form central (default morris).
  * Each prints its measured figures and returns non-zero when a check fails. */
 #include <math.h>
 #include <stdlib.h>
@@ -28,10 +29,15 @@ static stf_fluid_def cy_def(double spacing)
     return d;
 }
 
-static stf_fluid *make(const stf_fluid_def *d)
+/* The viscous operator of every case (the last argument `central`, else morris). */
+static int g_form = STF_VISCOSITY_MORRIS;
+
+static stf_fluid *make(const stf_fluid_def *def)
 {
     char err[256];
     stf_fluid *f;
+    stf_fluid_def d[1] = {*def};
+    d->cy.viscosity_form = g_form;
     if (stf_fluid_create(d, &f, err, sizeof err) != 0) {
         fprintf(stderr, "%s\n", err);
         exit(2);
@@ -450,10 +456,12 @@ static int dam3d(const char *path)
 {
     const double T = 0.4, sp = 0.072, cfl = 0.2, g = 9.81;
     stf_override ov[] = {{"fluid.spacing", "0.072"}, {"dt", "0.01"},
-                         {"effects.carreau_yasuda.cfl", "0.2"}};
+                         {"effects.carreau_yasuda.cfl", "0.2"},
+                         {"effects.carreau_yasuda.viscosity_form",
+                          g_form == STF_VISCOSITY_CENTRAL ? "central" : "morris"}};
     char err[1024];
     stf_scene *sc;
-    if (stf_scene_load(path, ov, 3, &sc, err, sizeof err) != 0) {
+    if (stf_scene_load(path, ov, 4, &sc, err, sizeof err) != 0) {
         fprintf(stderr, "%s\n", err);
         return 1;
     }
@@ -521,6 +529,7 @@ static int dam3d(const char *path)
 
 int main(int argc, char **argv)
 {
+    if (argc > 2 && !strcmp(argv[argc - 1], "central")) g_form = STF_VISCOSITY_CENTRAL, argc--;
     const char *what = argc > 1 ? argv[1] : "";
     if (!strcmp(what, "hydrostatic")) return hydrostatic();
     if (!strcmp(what, "poiseuille")) return poiseuille();
@@ -528,6 +537,7 @@ int main(int argc, char **argv)
     if (!strcmp(what, "stability")) return stability();
     if (!strcmp(what, "dambreak")) return dambreak();
     if (!strcmp(what, "dam3d") && argc > 2) return dam3d(argv[2]);
-    fprintf(stderr, "usage: cy_validate hydrostatic|poiseuille|floating|stability|dambreak|dam3d SCENE\n");
+    fprintf(stderr, "usage: cy_validate hydrostatic|poiseuille|floating|stability|dambreak|dam3d SCENE"
+                    " [central]\n");
     return 2;
 }
