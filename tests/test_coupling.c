@@ -582,8 +582,9 @@ static void test_angular_momentum_exchange(void)
  * it goes with dt). Carreau-Yasuda 0.475 and 0.434, nearly all of it the viscosity
  * (mu0 = 0.05 m^2/s; the same with a CG tolerance of 1e-10): a blob spinning alone at
  * 20 rad/s (no body) loses 98% of its angular momentum in 50 ms (10% at mu0 = 0.001 m^2/s,
- * water; 0.16% with the Clavet stages), a rigid rotation the SPH Laplacian does not see as
- * one near the free surface. */
+ * a thousand times water's; 0.16% with the Clavet stages), a rigid rotation Morris' SPH
+ * Laplacian does not see as one near the free surface (viscosity_form: central keeps it:
+ * test_cy). */
 static void test_angular_momentum_blob(void)
 {
     stf_ode_attach_def st = stf_ode_default_attach_def();
