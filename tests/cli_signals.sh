@@ -15,23 +15,15 @@ stf=$STF; src=$PROJ
 export OMP_NUM_THREADS=1 OMP_WAIT_POLICY=passive
 scene=$src/tests/scenes/small_drop.yaml
 
-# wait_frames FILE PID: waits until FILE has grown past its first frames: frames are being
-# written (h5py cannot look while the writer holds HDF5's file lock); 1 if PID ended first.
-# Past 200 kB, 5 or 6 frames were linked (6 kills, frozen there); past 100 kB only 2 to 4, too
-# close to the 2 the kills below ask for when the delay after it buys no CPU. No time limit:
-# a loaded machine makes the run slow, not wrong (ctest's timeout catches a hang).
-wait_frames() {
-    while kill -0 "$2" 2>/dev/null; do
-        [ "$(stat -c %s "$1" 2>/dev/null || echo 0)" -gt 200000 ] && return 0
-        sleep 0.05
-    done
-    return 1
-}
+# Frames are being written once term.h5 / kill.h5 pass 200 kB (grown, lib_cli.sh; h5py
+# cannot look while the writer holds HDF5's file lock): past 200 kB, 5 or 6 frames were
+# linked (6 kills, frozen there); past 100 kB only 2 to 4, too close to the 2 the kills below
+# ask for when the delay after it buys no CPU.
 
 # --- SIGTERM: like SIGINT ----------------------------------------------------------------
 "$stf" run "$scene" -o term.h5 --duration 1000 --quiet --threads 1 2>term.txt &
 pid=$!
-wait_frames term.h5 $pid || fail "SIGTERM: the run ended before it wrote a frame"
+grown term.h5 $pid 200000 || fail "SIGTERM: the run ended before it wrote a frame"
 kill -TERM $pid
 wait $pid
 rc=$?
@@ -55,7 +47,7 @@ for delay in 0.05 0.2 0.35 0.5 0.7 0.9; do
     rm -f kill.h5 kill.xmf
     "$stf" run "$scene" -o kill.h5 --duration 1000 --quiet --threads 1 2>/dev/null &
     pid=$!
-    wait_frames kill.h5 $pid || fail "kill after $delay s: the run ended before it wrote a frame"
+    grown kill.h5 $pid 200000 || fail "kill after $delay s: the run ended before it wrote a frame"
     sleep "$delay"
     kill -KILL $pid
     wait $pid 2>/dev/null

@@ -108,28 +108,17 @@ for x in g + l: x.pop("wall_seconds"), x.pop("run"), x.pop("repeat")
 assert len(l) == 4 and l[0] == l[1] == g[5] and l[2] == l[3] == g[0], (l, g[5], g[0])
 EOF
 
-# grown FILE PID: waits until FILE has grown past its first frames (PID is in its loop, its
-# signal handler set); 1 if PID ended first. No wall-clock delay: a loaded machine can spend
-# any fixed one still starting up.
-grown() {
-    while kill -0 "$2" 2>/dev/null; do
-        [ "$(stat -c %s "$1" 2>/dev/null || echo 0)" -gt 100000 ] && return 0
-        sleep 0.05
-    done
-    return 1
-}
-
 # resume: run 1 killed (no exit_status), run 3 interrupted (exit_status 130), run 5 missing
 cp -r serial resumed
 rm -f resumed/run_0001.h5 resumed/run_0003.h5 # (the copies would pass for grown files)
 "$STF" run "$SCENE" -o resumed/run_0001.h5 --duration 20 --threads 1 --quiet &
 pid=$!
-grown resumed/run_0001.h5 $pid || fail "run 1 ended before it was killed"
+grown resumed/run_0001.h5 $pid 100000 || fail "run 1 ended before it was killed"
 kill -KILL $pid 2>/dev/null
 wait $pid 2>/dev/null
 "$STF" run "$SCENE" -o resumed/run_0003.h5 --duration 20 --threads 1 --quiet 2>int.err &
 pid=$!
-grown resumed/run_0003.h5 $pid || fail "run 3 ended before it was interrupted"
+grown resumed/run_0003.h5 $pid 100000 || fail "run 3 ended before it was interrupted"
 kill -INT $pid
 wait $pid
 [ $? -eq 130 ] || fail "an interrupted stf run did not exit 130"
@@ -143,7 +132,7 @@ same_metrics serial/summary.csv resumed/summary.csv || fail "the resumed sweep's
 # a signal to the sweep stops it: the running run saves what it has, exit 130, rows say so
 "$STF" sweep "$SCENE" --vary bodies.0.mass=0.02,0.05 --duration 5 --jobs 1 --threads 1 --quiet -o stopped 2>stopped.err &
 pid=$!
-grown stopped/run_0000.h5 $pid || fail "the sweep ended before it was stopped"
+grown stopped/run_0000.h5 $pid 100000 || fail "the sweep ended before it was stopped"
 kill -TERM $pid
 wait $pid
 rc=$?

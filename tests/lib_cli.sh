@@ -14,3 +14,14 @@ trap 'rm -rf "$WORK"' EXIT
 cd "$WORK" || exit 1
 fails=0
 fail() { echo "$cli_name: FAIL: $*" >&2; fails=$((fails + 1)); }
+
+# grown FILE PID BYTES: waits until FILE holds more than BYTES (PID is past its start-up, in
+# its loop, its signal handlers set); 1 if PID ended first. No wall-clock limit: a loaded
+# machine makes a run slow, not wrong (ctest's timeout catches a hang).
+grown() {
+    while kill -0 "$2" 2>/dev/null; do
+        [ "$(stat -c %s "$1" 2>/dev/null || echo 0)" -gt "$3" ] && return 0
+        sleep 0.05
+    done
+    return 1
+}

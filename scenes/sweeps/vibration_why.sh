@@ -10,6 +10,7 @@
 # usage: bash scenes/sweeps/vibration_why.sh [STF] [DIR]
 set -eu
 here=$(cd "$(dirname "$0")" && pwd)
+. "$here/vibration_lib.sh"
 STF=${1:-$here/../../build/tools/stf}
 DIR=${2:-vibration_why}
 mkdir -p "$DIR"
@@ -36,27 +37,7 @@ echo "   with history:"; table "$DIR/khist/summary.csv" effects.history.k_hist c
 
 # 2. one vibration source
 source_scene() { # source_scene HISTORY(0|1)
-    cat <<YAML
-name: vibration_source
-duration: 3.0
-dt: 0.001
-frame_rate: 30
-fluid:
-  model: clavet_stf
-  spacing: 0.01
-  density: 1270
-  blocks:
-    - {min: [-0.08, -0.08, 0.0], max: [0.08, 0.08, 0.05]}
-effects:
-  gravity: {g: [0, 0, -9.81]}
-  viscosity: {sigma: 10.0}
-  pressure: {k: 1000, k_near: 200}
-  springs: {k_min: 100, yield_ratio: 0.0, plasticity: 2.0}
-YAML
-    [ "$1" = 1 ] && cat <<YAML
-  history: {q: 0.5, d: 50, k_hist: 200000, reference_spacing: 0.02}
-  boundary_stick: {stick: 200}
-YAML
+    layer vibration_source 0.08 0.05 "$1" 50 0
     cat <<YAML
 container: {size: [0.16, 0.16, 0.3], wall: 0.02, friction: 0.2}
 bodies:
