@@ -287,12 +287,14 @@ static void vibrate(stf_sim *s, dBodyID body, int k, const stf_vibration *v, con
  *              one step is pushed out on the far side (measured: a 2.5 cm lead ball at 60 m/s
  *              went through a 2 mm wall at dt = 1 ms; at 40 m/s it did not).
  *   thin solids: a particle moves at most half a spacing plus T relative to each solid per
- *              substep, T the solid's thickness (the container's wall, a body's inradius).
- *              The collisions leave particles half a spacing from a solid; a particle that
- *              moved further would land beyond a container wall (outside: free) or past a
- *              body's mid-plane (pushed out on the far side). Only thin solids trigger it:
- *              with h = 2 spacings, T < spacing / 2 (the CFL bound is stricter otherwise).
- *              The speed is the fastest particle's plus the solid's. */
+ *              substep, T the distance from a solid's surface to the point past which it is
+ *              pushed out on the far side: a body's inradius, half the container's wall when
+ *              the wall is solid from both sides (stf_wall_two_sided), the whole wall when it
+ *              is not (beyond it: outside, free). The collisions leave particles half a
+ *              spacing from a solid.
+ *              Only thin solids trigger it: with h = 2 spacings, T < spacing / 2 (the CFL
+ *              bound is stricter otherwise). The speed is the fastest particle's plus the
+ *              solid's. */
 enum { MAX_SPLIT = 64 };
 static const double CFL_H = 0.5, STIFF_MAX = 0.25, BODY_TRAVEL = 0.5;
 
@@ -339,7 +341,8 @@ static int substeps_for(const stf_sim *s, double dt)
         const stf_container_def *c = &sc->container;
         const double *z = c->size;
         double r = sqrt(z[0] * z[0] + z[1] * z[1] + z[2] * z[2]);
-        double thin = (vf + solid_speed(s->container, r, &c->vibration)) * dt / (rp + c->wall);
+        double thin = (vf + solid_speed(s->container, r, &c->vibration)) * dt /
+                      (rp + (stf_wall_two_sided(c->wall, sc->fluid.spacing) ? 0.5 : 1.0) * c->wall);
         if (thin > need) need = thin;
     }
     for (int k = 0; k < sc->nbodies; k++) {

@@ -79,17 +79,36 @@ static double sdf_cylinder(const double p[3], double r, double hl, double n[3])
     return dz;
 }
 
-/* Open-top box, local origin at the centre of the floor's top face; the inside is free. */
-static double sdf_container(const double p[3], const double half[3], double wall, double n[3])
+/* Open-top box, local origin at the centre of the floor's top face; the inside is free.
+ * two_sided (stf_wall_two_sided: walls at least a spacing thick): the walls and the floor are
+ * solid from both sides, and a point in them leaves by the nearest of the inner box, the rim
+ * (a wall's top) and the outer faces, so a particle from inside that went less than half the
+ * wall deep goes back in, and one from outside (a splash landing against an outer face) goes
+ * back out (the adaptive substep control keeps particles from crossing a wall's mid-plane in
+ * one substep: stf_sim.c). Otherwise the outside is free and a point in a wall goes back in
+ * (or up through the rim). */
+static double sdf_container(const double p[3], const double half[3], double wall, int two_sided,
+                            double n[3])
 {
     double hx = half[0], hy = half[1], top = 2.0 * half[2];
     int over = fabs(p[0]) <= hx + wall && fabs(p[1]) <= hy + wall; /* the footprint */
     int in_wall_column = fabs(p[0]) > hx || fabs(p[1]) > hy;
-    int in_shell = over && p[2] >= -wall && p[2] <= top;
-    if (!in_shell) { /* outside the container: far from every inner wall... */
+    if (!two_sided && (!over || p[2] < -wall)) { /* thin walls: free outside */
         n[0] = n[1] = 0, n[2] = 1;
-        /* ...but over a wall's rim: its top face */
-        return over && in_wall_column && p[2] > top ? p[2] - top : 1e30;
+        return 1e30;
+    }
+    if (!over) { /* beside the container: the outer box's faces, edges and rims */
+        double c[3] = {p[0], p[1], p[2] - 0.5 * (top - wall)};
+        double hb[3] = {hx + wall, hy + wall, 0.5 * (top + wall)};
+        return sdf_box(c, hb, n);
+    }
+    if (p[2] > top) { /* above: free over the opening, a wall's rim below over a wall */
+        n[0] = n[1] = 0, n[2] = 1;
+        return in_wall_column ? p[2] - top : 1e30;
+    }
+    if (p[2] < -wall) { /* under the floor */
+        n[0] = n[1] = 0, n[2] = -1;
+        return -wall - p[2];
     }
     double q[3] = {fabs(p[0]) - hx, fabs(p[1]) - hy, -p[2]};
     /* inside or on the inner surface (<=: on it the way back below has length 0, and -p[2]
@@ -101,13 +120,25 @@ static double sdf_container(const double p[3], const double half[3], double wall
         if (-q[2] < d) d = -q[2], n[0] = 0, n[1] = 0, n[2] = 1;
         return d;
     }
-    /* In the walls or floor: back to the inner box by the shortest way, or up through the
-       rim when that is shorter (a particle landing on a wall's top). */
+    /* In the walls or floor: back to the inner box by the shortest way, up through the rim
+       (a particle landing on a wall's top), or out through an outer face, whichever is
+       nearest (the inner box on a tie). */
     double out[3] = {q[0] > 0 ? q[0] : 0, q[1] > 0 ? q[1] : 0, q[2] > 0 ? q[2] : 0};
     double o = norm3(out);
-    if (in_wall_column && top - p[2] < o) {
+    double ox = hx + wall - fabs(p[0]), oy = hy + wall - fabs(p[1]), oz = p[2] + wall;
+    if (!two_sided) ox = oy = oz = 1e30;
+    double rim = in_wall_column ? top - p[2] : 1e30;
+    if (rim < o && rim <= ox && rim <= oy && rim <= oz) {
         n[0] = n[1] = 0, n[2] = 1;
-        return p[2] - top;
+        return -rim;
+    }
+    double outer = fmin(ox, fmin(oy, oz));
+    if (outer < o) {
+        n[0] = n[1] = n[2] = 0;
+        if (outer == ox) n[0] = p[0] < 0 ? -1 : 1;
+        else if (outer == oy) n[1] = p[1] < 0 ? -1 : 1;
+        else n[2] = -1;
+        return -outer;
     }
     n[0] = p[0] < 0 ? out[0] / o : -out[0] / o;
     n[1] = p[1] < 0 ? out[1] / o : -out[1] / o;
@@ -339,7 +370,7 @@ double collider_sdf(const collider *c, const double x[3], double n[3])
         d = sdf_capsule(p, c->def.radius, c->def.half_length, nl);
     else if (c->def.shape == STF_SHAPE_CYLINDER)
         d = sdf_cylinder(p, c->def.radius, c->def.half_length, nl);
-    else d = sdf_container(p, c->def.half, c->def.wall, nl);
+    else d = sdf_container(p, c->def.half, c->def.wall, c->two_sided, nl);
     to_world_dir(c, nl, n);
     return d;
 }

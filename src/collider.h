@@ -17,6 +17,7 @@ typedef struct collider {
     double moment[3]; /* N m s, about pos */
     double shift[3];  /* kg m: sum of m delta of the overlap removal (stf_fluid_collider_shift) */
     double bound;     /* m: radius of a sphere around pos holding the solid (<0: unbounded) */
+    int two_sided;    /* container: its walls are solid from outside too (stf_wall_two_sided) */
 } collider;
 
 int collider_init(collider *c, const stf_collider_def *def, char *err, size_t errlen);

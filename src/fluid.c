@@ -307,7 +307,9 @@ int stf_fluid_add_collider(stf_fluid *f, const stf_collider_def *def, char *err,
         if (grow((void **)&f->colliders, sizeof(collider), cap)) FAIL("out of memory");
         f->collider_cap = cap;
     }
-    if (collider_init(&f->colliders[f->ncolliders], def, err, errlen) != 0) return -1;
+    collider *c = &f->colliders[f->ncolliders];
+    if (collider_init(c, def, err, errlen) != 0) return -1;
+    c->two_sided = def->shape == STF_SHAPE_CONTAINER && stf_wall_two_sided(def->wall, f->def.spacing);
     return f->ncolliders++;
 }
 

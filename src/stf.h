@@ -198,6 +198,12 @@ typedef struct stf_collider_def {
 } stf_collider_def;
 
 stf_collider_def stf_default_collider_def(void);
+/* Whether a container's walls and floor of thickness wall (m) are solid from both sides for a
+ * fluid of this spacing (m): when they are at least a spacing thick. A particle in such a wall
+ * leaves by the nearest face, inner or outer; a thinner wall cannot tell the sides apart (a
+ * particle squeezed into it by a body may be past its mid-plane), so it sends every particle
+ * in it back into the container, and its outside is free. */
+static inline int stf_wall_two_sided(double wall, double spacing) { return wall >= spacing; }
 /* A bounded shape's size about its body origin: the radius of the largest sphere inside it
  * (m; 0 for a convex hull that does not hold the origin) and of the smallest sphere holding
  * it (m). Returns 0; -1 for planes and containers (unbounded) or an invalid def. */

@@ -260,11 +260,56 @@ static void test_rim(void)
     stf_fluid_destroy(f);
 }
 
+/* A container's walls and floor are solid from outside too: distances beside and under it,
+ * a point in a wall nearer its outer face leaves outwards, and a particle thrown at an outer
+ * face from outside bounces off it. Before, outside was free up to the wall and a particle
+ * inside a wall always went back into the container: the splash got in through the wall. */
+static void test_outer_faces(void)
+{
+    stf_fluid_def d = stf_default_fluid_def();
+    d.jitter = 0;
+    d.effects = STF_EFFECT_PRESSURE;
+    d.spacing = 0.01;
+    char err[256];
+    stf_fluid *f;
+    if (stf_fluid_create(&d, &f, err, sizeof err)) exit(1);
+    stf_collider_def c = stf_default_collider_def();
+    c.shape = STF_SHAPE_CONTAINER, c.half[0] = 0.05, c.half[1] = 0.05, c.half[2] = 0.1, c.wall = 0.02;
+    int id = add(f, c);
+    stf_fluid_set_collider_state(f, id, (double[3]){0, 0, 0}, NULL, (double[3]){0, 0, 0},
+                                 (double[3]){0, 0, 0});
+    CHECK_NEAR(stf_fluid_collider_distance(f, id, (double[3]){0.08, 0, 0.05}), 0.01, 1e-12, "beside a wall");
+    CHECK_NEAR(stf_fluid_collider_distance(f, id, (double[3]){0.08, 0.09, 0.05}), sqrt(0.0005), 1e-12,
+               "beside an outer edge");
+    CHECK_NEAR(stf_fluid_collider_distance(f, id, (double[3]){0, 0, -0.03}), 0.01, 1e-12, "under the floor");
+    CHECK_NEAR(stf_fluid_collider_distance(f, id, (double[3]){0.065, 0, 0.05}), -0.005, 1e-12,
+               "in a wall, nearer its outer face");
+    CHECK_NEAR(stf_fluid_collider_distance(f, id, (double[3]){0.055, 0, 0.05}), -0.005, 1e-12,
+               "in a wall, nearer its inner face");
+    stf_fluid_add_particle(f, (double[3]){0.09, 0, 0.05}, (double[3]){-1, 0, 0});
+    for (int k = 0; k < 50; k++) CHECK(stf_fluid_step(f, 1e-3) == 0, "%s", stf_fluid_failure(f));
+    double y[3];
+    stf_fluid_get_positions(f, y);
+    printf("outer faces: a particle thrown at a wall from outside is at x = %.4f m after 50 ms "
+           "(the wall: 0.05..0.07)\n", y[0]);
+    CHECK(y[0] >= 0.07, "the particle got into the wall or through it: x = %g", y[0]);
+    /* a wall thinner than a spacing stays one-way: outside free, inside it back in */
+    c.wall = 0.005;
+    int thin = add(f, c);
+    stf_fluid_set_collider_state(f, thin, (double[3]){0, 0, 0}, NULL, (double[3]){0, 0, 0},
+                                 (double[3]){0, 0, 0});
+    CHECK(stf_fluid_collider_distance(f, thin, (double[3]){0.06, 0, 0.05}) > 1, "beside a thin wall");
+    CHECK_NEAR(stf_fluid_collider_distance(f, thin, (double[3]){0.054, 0, 0.05}), -0.004, 1e-12,
+               "in a thin wall, nearer its outer face");
+    stf_fluid_destroy(f);
+}
+
 int main(void)
 {
     test_shapes();
     test_on_surface();
     test_rim();
+    test_outer_faces();
     test_convex_on_surface();
     test_convex();
     test_remove_inside();
