@@ -231,22 +231,38 @@ static void test_convex_on_surface(void)
     stf_fluid_destroy(f);
 }
 
-/* A wall's rim is solid too: a particle falling on the top of a 2 cm container wall rests
- * on it (half a spacing above), it is not moved sideways into the container. */
-static void test_rim(void)
+/* A 10 x 10 x 20 cm container with walls wall thick at the origin, added to f. */
+static int add_container(stf_fluid *f, double wall)
+{
+    stf_collider_def c = stf_default_collider_def();
+    c.shape = STF_SHAPE_CONTAINER, c.half[0] = 0.05, c.half[1] = 0.05, c.half[2] = 0.1, c.wall = wall;
+    int id = add(f, c);
+    stf_fluid_set_collider_state(f, id, (double[3]){0, 0, 0}, NULL, (double[3]){0, 0, 0},
+                                 (double[3]){0, 0, 0});
+    return id;
+}
+
+/* A fluid at 1 cm spacing (no jitter) with the given effects, in a container with 2 cm walls
+ * (its collider id in *id). */
+static stf_fluid *contained_fluid(unsigned effects, int *id)
 {
     stf_fluid_def d = stf_default_fluid_def();
     d.jitter = 0;
-    d.effects = STF_EFFECT_PRESSURE | STF_EFFECT_GRAVITY;
+    d.effects = effects;
     d.spacing = 0.01;
     char err[256];
     stf_fluid *f;
     if (stf_fluid_create(&d, &f, err, sizeof err)) exit(1);
-    stf_collider_def c = stf_default_collider_def();
-    c.shape = STF_SHAPE_CONTAINER, c.half[0] = 0.05, c.half[1] = 0.05, c.half[2] = 0.1, c.wall = 0.02;
-    int id = add(f, c);
-    stf_fluid_set_collider_state(f, id, (double[3]){0, 0, 0}, NULL, (double[3]){0, 0, 0},
-                                 (double[3]){0, 0, 0});
+    *id = add_container(f, 0.02);
+    return f;
+}
+
+/* A wall's rim is solid too: a particle falling on the top of a 2 cm container wall rests
+ * on it (half a spacing above), it is not moved sideways into the container. */
+static void test_rim(void)
+{
+    int id;
+    stf_fluid *f = contained_fluid(STF_EFFECT_PRESSURE | STF_EFFECT_GRAVITY, &id);
     CHECK_NEAR(stf_fluid_collider_distance(f, id, (double[3]){0.06, 0, 0.203}), 0.003, 1e-12, "over the rim");
     CHECK_NEAR(stf_fluid_collider_distance(f, id, (double[3]){0.06, 0, 0.199}), -0.001, 1e-12, "in the rim");
     stf_fluid_add_particle(f, (double[3]){0.06, 0, 0.206}, (double[3]){0, 0, -0.5});
@@ -266,18 +282,8 @@ static void test_rim(void)
  * inside a wall always went back into the container: the splash got in through the wall. */
 static void test_outer_faces(void)
 {
-    stf_fluid_def d = stf_default_fluid_def();
-    d.jitter = 0;
-    d.effects = STF_EFFECT_PRESSURE;
-    d.spacing = 0.01;
-    char err[256];
-    stf_fluid *f;
-    if (stf_fluid_create(&d, &f, err, sizeof err)) exit(1);
-    stf_collider_def c = stf_default_collider_def();
-    c.shape = STF_SHAPE_CONTAINER, c.half[0] = 0.05, c.half[1] = 0.05, c.half[2] = 0.1, c.wall = 0.02;
-    int id = add(f, c);
-    stf_fluid_set_collider_state(f, id, (double[3]){0, 0, 0}, NULL, (double[3]){0, 0, 0},
-                                 (double[3]){0, 0, 0});
+    int id;
+    stf_fluid *f = contained_fluid(STF_EFFECT_PRESSURE, &id);
     CHECK_NEAR(stf_fluid_collider_distance(f, id, (double[3]){0.08, 0, 0.05}), 0.01, 1e-12, "beside a wall");
     CHECK_NEAR(stf_fluid_collider_distance(f, id, (double[3]){0.08, 0.09, 0.05}), sqrt(0.0005), 1e-12,
                "beside an outer edge");
@@ -294,10 +300,7 @@ static void test_outer_faces(void)
            "(the wall: 0.05..0.07)\n", y[0]);
     CHECK(y[0] >= 0.07, "the particle got into the wall or through it: x = %g", y[0]);
     /* a wall thinner than a spacing stays one-way: outside free, inside it back in */
-    c.wall = 0.005;
-    int thin = add(f, c);
-    stf_fluid_set_collider_state(f, thin, (double[3]){0, 0, 0}, NULL, (double[3]){0, 0, 0},
-                                 (double[3]){0, 0, 0});
+    int thin = add_container(f, 0.005);
     CHECK(stf_fluid_collider_distance(f, thin, (double[3]){0.06, 0, 0.05}) > 1, "beside a thin wall");
     CHECK_NEAR(stf_fluid_collider_distance(f, thin, (double[3]){0.054, 0, 0.05}), -0.004, 1e-12,
                "in a thin wall, nearer its outer face");
