@@ -327,6 +327,18 @@ static void test_window_recompute(int D, int T, int RESIZE)
     for (int l = 0; l < best; l++) history_free(&c[l]);
 }
 
+/* history_permute(h, map, n) with at (the tracked identity of each of h's particles)
+ * permuted alike: at[k] becomes at[map[k]]. */
+static void permute_tracked(stf_history *h, int *at, const int *map, int n, const char *what)
+{
+    int *nat = malloc((size_t)n * sizeof *nat);
+    if (!nat) exit(1);
+    for (int k = 0; k < n; k++) nat[k] = at[map[k]];
+    memcpy(at, nat, (size_t)n * sizeof *nat);
+    free(nat);
+    CHECK(history_permute(h, map, n) == 0, "%s", what);
+}
+
 /* Particles removed (history_permute with fewer particles, the rows gathered again) and
  * re-sorts (only the row -> particle map changes): each kept particle's sums are bit for bit
  * those of a twin that only ever held the kept particles, in their final order. */
@@ -342,17 +354,9 @@ static void test_window_remove(void)
     int na = NP;
     long differ = 0, checked = 0;
     for (int t = 0; t < T; t++) {
-        if (t == SORT) {
-            int nat[NP];
-            for (int k = 0; k < NP; k++) nat[k] = at[sort[k]];
-            memcpy(at, nat, sizeof at);
-            CHECK(history_permute(&a, sort, NP) == 0, "re-sort");
-        }
+        if (t == SORT) permute_tracked(&a, at, sort, NP, "re-sort");
         if (t == REMOVE) {
-            int nat[KEEP];
-            for (int k = 0; k < KEEP; k++) nat[k] = at[keep[k]];
-            memcpy(at, nat, sizeof nat);
-            CHECK(history_permute(&a, keep, KEEP) == 0, "remove");
+            permute_tracked(&a, at, keep, KEEP, "remove");
             na = KEEP;
         }
         /* b holds, at index k, the particle a ends with at k: the one at index keep[k] after
@@ -391,7 +395,7 @@ static void test_window_resort(int D)
     const double q = 0.7;
     stf_history a, b;
     CHECK(history_init(&a, q, D, NP) == 0 && history_init(&b, q, D, NP) == 0, "init");
-    static int at[NP], perm[NP], nat[NP]; /* at[k]: b's particle at index k of a */
+    static int at[NP], perm[NP]; /* at[k]: b's particle at index k of a */
     for (int k = 0; k < NP; k++) at[k] = k;
     static double va[NP * 3], vb[NP * 3];
     long differ = 0, checked = 0;
@@ -399,9 +403,7 @@ static void test_window_resort(int D)
         if (t == FAR || t == NEAR) {
             for (int k = 0; k < NP; k++) /* reversed; or neighbours swapped in pairs */
                 perm[k] = t == FAR ? NP - 1 - k : (k ^ 1) < NP ? k ^ 1 : k;
-            for (int k = 0; k < NP; k++) nat[k] = at[perm[k]];
-            memcpy(at, nat, sizeof at);
-            CHECK(history_permute(&a, perm, NP) == 0, "re-sort");
+            permute_tracked(&a, at, perm, NP, "re-sort");
             /* short ring: row k holds particle k again; long: the map follows them */
             int p0 = D < 256 ? 0 : t == FAR ? NP - 1 : NP - 2;
             CHECK(a.part[0] == p0, "d=%d t=%d: row 0 holds particle %d, not %d", D, t,
@@ -445,17 +447,9 @@ static void test_window_add_then_remove(int D)
     int na = NP;
     long differ = 0, checked = 0;
     for (int t = 0; t < T; t++) {
-        if (t == SORT) {
-            int nat[NP];
-            for (int k = 0; k < NP; k++) nat[k] = at[sort[k]];
-            memcpy(at, nat, sizeof nat);
-            CHECK(history_permute(&a, sort, NP) == 0, "re-sort");
-        }
+        if (t == SORT) permute_tracked(&a, at, sort, NP, "re-sort");
         if (t == T0) { /* ADD particles appended, then the others removed, no push between */
-            int nat[NP + ADD];
-            for (int k = 0; k < nkeep; k++) nat[k] = at[keep[k]];
-            memcpy(at, nat, sizeof nat);
-            CHECK(history_permute(&a, keep, nkeep) == 0, "remove after adding");
+            permute_tracked(&a, at, keep, nkeep, "remove after adding");
             na = nkeep;
         }
         /* a's particle k carries the signal of particle at[k] */
