@@ -136,18 +136,30 @@ static void test_drop(const char *path)
     CHECK(stf_metrics_get(&m, "fluid.final_com_height", &got) == 0, "key final_com_height");
 }
 
+/* A file over the flat layer of surface(0, 0) (its one frame at t = 0) for a body NAME of the
+ * given half height; min_rise > 0 sets bounce_min_rise. NULL when the file cannot be made. */
+static stf_h5 *body_over_layer(const char *path, const char *name, double half_height,
+                               double min_rise)
+{
+    stf_h5 *h = new_file(path);
+    if (!h) return NULL;
+    char key[64];
+    snprintf(key, sizeof key, "body.%s.half_height", name);
+    if (min_rise > 0) stf_h5_attr_double(h, "bounce_min_rise", min_rise);
+    stf_h5_attr_double(h, key, half_height);
+    static double x[3 * MAXP], v[3 * MAXP];
+    int n = surface(0, 0, x);
+    CHECK(stf_h5_write_frame(h, 0.0, n, x, v, NULL, NULL) == 0, "frame");
+    return h;
+}
+
 /* A body of half height 0.1 m over a flat layer (surface 0.05 m + S/2 = 0.055 m): falls to
  * contact at t = 0.1, bounces 3 cm, then from t = 0.5 creeps down at 1 cm/s (resting: slower
  * than STF_REST_SPEED) until its top passes below the surface. Every metric is known. */
 static void test_body(const char *path)
 {
-    stf_h5 *h = new_file(path);
+    stf_h5 *h = body_over_layer(path, "ball", 0.1, 0.01);
     if (!h) return;
-    stf_h5_attr_double(h, "bounce_min_rise", 0.01);
-    stf_h5_attr_double(h, "body.ball.half_height", 0.1);
-    static double x[3 * MAXP], v[3 * MAXP];
-    int n = surface(0, 0, x);
-    CHECK(stf_h5_write_frame(h, 0.0, n, x, v, NULL, NULL) == 0, "frame");
     const double dt = 0.01, q[4] = {1, 0, 0, 0}, w[3] = {0}, f[3] = {0};
     double z = 0.3;
     for (int i = 0; i <= 300; i++) {
@@ -181,13 +193,8 @@ static void test_body(const char *path)
  * counted, so its rise is the max_rebound_height (not 0 with bounces 1). */
 static void test_bounce_at_end(const char *path)
 {
-    stf_h5 *h = new_file(path);
+    stf_h5 *h = body_over_layer(path, "ball", 0.1, 0.01);
     if (!h) return;
-    stf_h5_attr_double(h, "bounce_min_rise", 0.01);
-    stf_h5_attr_double(h, "body.ball.half_height", 0.1);
-    static double x[3 * MAXP], v[3 * MAXP];
-    int n = surface(0, 0, x);
-    CHECK(stf_h5_write_frame(h, 0.0, n, x, v, NULL, NULL) == 0, "frame");
     const double q[4] = {1, 0, 0, 0}, w[3] = {0}, f[3] = {0}, zs[] = {0.16, 0.14, 0.12, 0.14};
     for (int i = 0; i < 4; i++) {
         double pos[3] = {0.1, 0.1, zs[i]}, vel[3] = {0, 0, 0};
@@ -206,13 +213,9 @@ static void test_bounce_at_end(const char *path)
  * surface at z < 0.025 (t > 0.177 s: 0.18 s). */
 static void test_turned_slab(const char *path)
 {
-    stf_h5 *h = new_file(path);
+    stf_h5 *h = body_over_layer(path, "slab", 0.005, 0);
     if (!h) return;
-    stf_h5_attr_double(h, "body.slab.half_height", 0.005);
     stf_h5_attr_string(h, "body.slab.shape", "box 0.03 0.005 0.005");
-    static double x[3 * MAXP], v[3 * MAXP];
-    int n = surface(0, 0, x);
-    CHECK(stf_h5_write_frame(h, 0.0, n, x, v, NULL, NULL) == 0, "frame");
     const double q[4] = {sqrt(0.5), 0, sqrt(0.5), 0}, w[3] = {0}, f[3] = {0};
     for (int i = 0; i <= 40; i++) {
         double t = 0.005 * i, pos[3] = {0.1, 0.1, 0.202 - t}, vel[3] = {0, 0, -1};
@@ -270,12 +273,8 @@ static void test_far_particle(const char *path)
  * the invalid token nan. */
 static void test_nan_body_json(const char *path)
 {
-    stf_h5 *h = new_file(path);
+    stf_h5 *h = body_over_layer(path, "ball", 0.05, 0);
     if (!h) return;
-    stf_h5_attr_double(h, "body.ball.half_height", 0.05);
-    static double x[3 * MAXP], v[3 * MAXP];
-    int n = surface(0, 0, x);
-    CHECK(stf_h5_write_frame(h, 0.0, n, x, v, NULL, NULL) == 0, "frame");
     const double q[4] = {1, 0, 0, 0}, w[3] = {0}, f[3] = {0};
     double pos[3] = {0, 0, NAN}, vel[3] = {0};
     CHECK(stf_h5_body_append(h, "ball", 0.0, pos, q, vel, w, f) == 0, "row");
