@@ -5,6 +5,7 @@
 
 #include "stf_sim.h"
 #include "test_util.h"
+#include "sim_util.h"
 
 static stf_fluid *make_fluid(unsigned effects, double spacing, double jitter)
 {
@@ -276,15 +277,9 @@ static void test_thin_walls(void)
         "bodies:\n"
         "  - {name: plate, shape: box, size: [0.002, 0.08, 0.08], position: [-0.04, 0, 0.05], "
         "motion: kinematic}\n";
-    char err[1024];
-    stf_scene *sc = NULL;
-    stf_sim *s = NULL;
-    CHECK(stf_scene_load_string("thin.yaml", scene, NULL, 0, &sc, err, sizeof err) == 0, "%s", err);
-    if (sc) CHECK(stf_sim_create(sc, &s, err, sizeof err) == 0, "%s", err);
-    if (!s) {
-        stf_scene_free(sc);
-        return;
-    }
+    stf_scene *sc;
+    stf_sim *s = load_sim("thin.yaml", scene, &sc);
+    if (!s) return;
     CHECK(stf_fluid_count(s->fluid) == 2, "%d particles", stf_fluid_count(s->fluid));
     for (int k = 0; k < 5; k++) CHECK(stf_sim_step(s) == 0, "step %d", k);
     double x[6];
@@ -323,15 +318,9 @@ static void test_dynamic_container(void)
         "  position: [0.1, 0.2, 0.3]\n"
         "  motion: dynamic\n"
         "  mass: 2\n";
-    char err[1024];
-    stf_scene *sc = NULL;
-    stf_sim *s = NULL;
-    CHECK(stf_scene_load_string("spin.yaml", scene, NULL, 0, &sc, err, sizeof err) == 0, "%s", err);
-    if (sc) CHECK(stf_sim_create(sc, &s, err, sizeof err) == 0, "%s", err);
-    if (!s) {
-        stf_scene_free(sc);
-        return;
-    }
+    stf_scene *sc;
+    stf_sim *s = load_sim("spin.yaml", scene, &sc);
+    if (!s) return;
     /* the material's centre: the five wall boxes' centres weighted by their volumes */
     double c0[3] = {0, 0, 0}, c1[3];
     for (int pass = 0; pass < 2; pass++) {

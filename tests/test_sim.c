@@ -6,16 +6,7 @@
 
 #include "stf_sim.h"
 #include "test_util.h"
-
-static stf_sim *load(const char *name, const char *text, stf_scene **sc)
-{
-    char err[1024];
-    stf_sim *s = NULL;
-    *sc = NULL;
-    CHECK(stf_scene_load_string(name, text, NULL, 0, sc, err, sizeof err) == 0, "%s", err);
-    if (*sc) CHECK(stf_sim_create(*sc, &s, err, sizeof err) == 0, "%s", err);
-    return s;
-}
+#include "sim_util.h"
 
 /* A ball thrown down into a fluid block (no container, so no ODE contacts): the only forces on
  * it are gravity and the fluid's, so over each step m (v1 - v0) = (m g + F) dt, with F the
@@ -38,11 +29,8 @@ static void test_fluid_force_is_step_mean(void)
         "  - {name: ball, shape: sphere, radius: 0.02, density: 3000, position: [0, 0, 0.07],\n"
         "     velocity: [0, 0, -6]}\n";
     stf_scene *sc;
-    stf_sim *s = load("throw.yaml", scene, &sc);
-    if (!s) {
-        stf_scene_free(sc);
-        return;
-    }
+    stf_sim *s = load_sim("throw.yaml", scene, &sc);
+    if (!s) return;
     dMass mass;
     dBodyGetMass(s->bodies[0], &mass);
     const double m = mass.mass, dt = sc->dt, *g = sc->fluid.gravity;
