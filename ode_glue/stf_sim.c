@@ -327,16 +327,9 @@ static int substeps_for(const stf_sim *s, double dt)
         if (ks > k_eff) k_eff = ks;
     }
     double need = sqrt(dt * dt * k_eff / STIFF_MAX);
-    double cfl = stf_fluid_max_speed(s->fluid) * dt / (CFL_H * h);
-    if (cfl > need) need = cfl;
-    for (int k = 0; k < sc->nbodies; k++) {
-        double r = s->inradius[k];
-        if (sc->bodies[k].motion != STF_MOTION_DYNAMIC || !(r > 0)) continue;
-        const dReal *v = dBodyGetLinearVel(s->bodies[k]);
-        double travel = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) * dt / (BODY_TRAVEL * r);
-        if (travel > need) need = travel;
-    }
     double vf = stf_fluid_max_speed(s->fluid), rp = 0.5 * sc->fluid.spacing;
+    double cfl = vf * dt / (CFL_H * h);
+    if (cfl > need) need = cfl;
     if (sc->container.present) {
         const stf_container_def *c = &sc->container;
         const double *z = c->size;
@@ -346,9 +339,14 @@ static int substeps_for(const stf_sim *s, double dt)
         if (thin > need) need = thin;
     }
     for (int k = 0; k < sc->nbodies; k++) {
+        double r = s->inradius[k];
         double thin = (vf + solid_speed(s->bodies[k], s->bound[k], &sc->bodies[k].vibration)) *
-                      dt / (rp + s->inradius[k]);
+                      dt / (rp + r);
         if (thin > need) need = thin;
+        if (sc->bodies[k].motion != STF_MOTION_DYNAMIC || !(r > 0)) continue;
+        const dReal *v = dBodyGetLinearVel(s->bodies[k]);
+        double travel = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) * dt / (BODY_TRAVEL * r);
+        if (travel > need) need = travel;
     }
     if (!(need > 1.0)) return 1;
     return need >= MAX_SPLIT ? MAX_SPLIT : (int)ceil(need);
