@@ -732,7 +732,6 @@ static void density_one(stf_fluid *f, int i)
         for (int k = 0; k < nk; k++) {
             double s = S[k], l2 = 0;
             rho += m * W[k];
-            lp[k0 + k] = (float)(m * L[k]);
             pr[k0 + k].j = nb[k0 + k];
             for (int a3 = 0; a3 < 3; a3++) {
                 pr[k0 + k].g[a3] = (float)(s * R[a3][k]);
@@ -740,7 +739,8 @@ static void density_one(stf_fluid *f, int i)
                 l2 += R[a3][k] * R[a3][k];
             }
             sq += m * m * s * s * l2;
-            if (central) lp[k0 + k] = s != 0 ? (float)(5 * m / (s * (l2 + eps))) : 0.0f;
+            lp[k0 + k] = !central ? (float)(m * L[k])
+                         : s != 0 ? (float)(5 * m / (s * (l2 + eps))) : 0.0f;
         }
     }
     c->rho[i] = rho;
