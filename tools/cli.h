@@ -14,4 +14,9 @@ struct stf_metrics;
  * -1 the key names no metric of this run. *value is the measured value (NAN for null). */
 int cli_expectation_holds(const stf_expectation *e, const struct stf_metrics *m, double *value);
 
+/* An option OPT last on CMD's command line, without its value: "option OPT needs a value"
+ * when OPT is one of valued (NULL-terminated), "unknown option" otherwise, with the usage, on
+ * stderr. Returns 2, the exit code. */
+int cli_missing_value(const char *cmd, const char *opt, const char *const *valued, const char *usage);
+
 #endif

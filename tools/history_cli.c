@@ -16,6 +16,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
+#include "cli.h"
 #include "canvas.h"
 #include "history.h"
 #include "stf.h"
@@ -739,12 +740,8 @@ int cli_history(int argc, char **argv)
         }
         if (i + 1 >= argc) {
             static const char *const valued[] = {"--fig", "-o", "--q", "--d", "--dt", "--k-hist",
-                                                 "--steps", "--n", "--profile"};
-            int known = 0;
-            for (size_t k = 0; k < sizeof valued / sizeof *valued; k++) known |= !strcmp(a, valued[k]);
-            if (known) fprintf(stderr, "stf history: option %s needs a value\n%s\n", a, USAGE);
-            else fprintf(stderr, "stf history: unknown option '%s'\n%s\n", a, USAGE);
-            return 2;
+                                                 "--steps", "--n", "--profile", NULL};
+            return cli_missing_value("history", a, valued, USAGE);
         }
         const char *val = argv[++i];
         if (!strcmp(a, "--fig")) {

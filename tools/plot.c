@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "cli.h"
 #include "canvas.h"
 #include "h5io.h"
 #include "metrics.h"
@@ -200,10 +201,8 @@ int cli_plot(int argc, char **argv)
             continue;
         }
         if (i + 1 >= argc) {
-            if (!strcmp(a, "-o") || !strcmp(a, "--body") || !strcmp(a, "--width") || !strcmp(a, "--height"))
-                fprintf(stderr, "stf plot: option %s needs a value\n%s\n", a, USAGE);
-            else fprintf(stderr, "stf plot: unknown option '%s'\n%s\n", a, USAGE);
-            return 2;
+            static const char *const valued[] = {"-o", "--body", "--width", "--height", NULL};
+            return cli_missing_value("plot", a, valued, USAGE);
         }
         const char *val = argv[++i];
         if (!strcmp(a, "-o")) out_opt = val;

@@ -12,6 +12,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "cli.h"
 #include "canvas.h"
 #include "h5io.h"
 #include "pictures.h"
@@ -844,12 +845,9 @@ int cli_render(int argc, char **argv)
             continue;
         } else if (!has_val) {
             static const char *const valued[] = {"-o", "--frames", "--montage", "--every", "--width",
-                                                 "--height", "--camera", "--look", "--max", "--color"};
-            int known = 0;
-            for (size_t k = 0; k < sizeof valued / sizeof *valued; k++) known |= !strcmp(a, valued[k]);
-            if (known) fprintf(stderr, "stf render: option %s needs a value\n%s\n", a, USAGE);
-            else fprintf(stderr, "stf render: unknown option '%s'\n%s\n", a, USAGE);
-            return 2;
+                                                 "--height", "--camera", "--look", "--max", "--color",
+                                                 NULL};
+            return cli_missing_value("render", a, valued, USAGE);
         } else if (!strcmp(a, "-o")) dir_opt = val;
         else if (!strcmp(a, "--frames")) frames_opt = val;
         else if (!strcmp(a, "--montage")) montage = val;

@@ -91,3 +91,12 @@ int main(int argc, char **argv)
     usage(stderr);
     return 2;
 }
+
+int cli_missing_value(const char *cmd, const char *opt, const char *const *valued, const char *usage)
+{
+    int known = 0;
+    for (; *valued; valued++) known |= !strcmp(opt, *valued);
+    if (known) fprintf(stderr, "stf %s: option %s needs a value\n%s\n", cmd, opt, usage);
+    else fprintf(stderr, "stf %s: unknown option '%s'\n%s\n", cmd, opt, usage);
+    return 2;
+}
