@@ -62,6 +62,17 @@ typedef struct bench_args {
     int grow_domain;   /* scaling: 10x the particles by a wider pool (1) or a finer spacing */
 } bench_args;
 
+/* The accuracy benchmark's knobs, in the order they run and are drawn. */
+enum { NKNOBS = 4 };
+static const char *const KNOBS[NKNOBS] = {"dt", "spacing", "history", "solver"};
+
+static int knob_index(const char *name)
+{
+    for (int k = 0; k < NKNOBS; k++)
+        if (!strcmp(name, KNOBS[k])) return k;
+    return -1;
+}
+
 static int bad(const char *msg, const char *arg)
 {
     fprintf(stderr, "stf bench: %s '%s'\n", msg, arg);
@@ -156,8 +167,7 @@ static int parse(int argc, char **argv, bench_args *a)
             strcpy(buf, a->knobs);
             char *save = NULL;
             for (char *k = strtok_r(buf, ",", &save); k; k = strtok_r(NULL, ",", &save))
-                if (strcmp(k, "dt") && strcmp(k, "spacing") && strcmp(k, "history") &&
-                    strcmp(k, "solver"))
+                if (knob_index(k) < 0)
                     return bad("--knobs: a comma list of dt, spacing, history, solver; unknown", k);
             if (!a->knobs[0]) return bad("--knobs: empty list", a->knobs);
         } else if (!strcmp(s, "--grow") && more) {
@@ -824,9 +834,8 @@ static void plot_pareto(const char *path, acc_run *runs, int nruns, double budge
 {
     static const float BLACK[3] = {0, 0, 0}, GRID[3] = {0.85f, 0.85f, 0.85f},
                        WHITE[3] = {1, 1, 1}, RED[3] = {0.8f, 0.1f, 0.1f};
-    static const float col[4][3] = {{0.12f, 0.35f, 0.75f}, {0.9f, 0.5f, 0.05f}, {0.1f, 0.6f, 0.2f},
+    static const float col[NKNOBS][3] = {{0.12f, 0.35f, 0.75f}, {0.9f, 0.5f, 0.05f}, {0.1f, 0.6f, 0.2f},
                                     {0.6f, 0.2f, 0.7f}};
-    static const char *const knobs[4] = {"dt", "spacing", "history", "solver"};
     int W = 1000, H = 700, x0 = 110, x1 = 960, y0 = 80, y1 = 610;
     canvas *c = canvas_new(W, H);
     if (!c) return;
@@ -869,11 +878,11 @@ static void plot_pareto(const char *path, acc_run *runs, int nruns, double budge
     canvas_text_halo(c, x1 - 10 - canvas_text_width(buf, 2), (int)PY(budget) - 20, buf, RED, WHITE, 2);
     canvas_text(c, x0, 20, "error vs cost (each knob against its finest setting)", BLACK, 2);
     canvas_text(c, x0, 44, "y: rms body path error, m (reference: 1e-5)   x: cpu time, s", BLACK, 2);
-    for (int k = 0; k < 4; k++) {
+    for (int k = 0; k < NKNOBS; k++) {
         double px = 0, py = 0;
         char series[16] = "";
         for (int i = 0; i < nruns; i++) {
-            if (!runs[i].ok || strcmp(runs[i].knob, knobs[k])) continue;
+            if (!runs[i].ok || strcmp(runs[i].knob, KNOBS[k])) continue;
             /* one line per mode: window d, soe K (full and its 0 error stand alone) */
             char mode[16];
             snprintf(mode, sizeof mode, "%s", runs[i].setting);
@@ -886,7 +895,7 @@ static void plot_pareto(const char *path, acc_run *runs, int nruns, double budge
             snprintf(series, sizeof series, "%s", mode);
         }
         canvas_circle(c, x0 + 35 + 220 * k, y1 + 57, 5, col[k]);
-        canvas_text(c, x0 + 48 + 220 * k, y1 + 50, knobs[k], BLACK, 2);
+        canvas_text(c, x0 + 48 + 220 * k, y1 + 50, KNOBS[k], BLACK, 2);
     }
 #undef PX
 #undef PY
@@ -917,9 +926,8 @@ static int bench_accuracy(const bench_args *a, const char *self)
     int nruns = 0;
     memset(runs, 0, sizeof runs);
     /* Settings, finest first: the first of each knob is its reference. */
-    for (int k = 0; k < 4; k++) {
-        static const char *const names[4] = {"dt", "spacing", "history", "solver"};
-        if (!strstr(knobs, names[k]) || (k == 2 && !hist) || (k == 3 && !cy)) continue;
+    for (int k = 0; k < NKNOBS; k++) {
+        if (!strstr(knobs, KNOBS[k]) || (k == 2 && !hist) || (k == 3 && !cy)) continue;
         int first = nruns;
         if (k == 0) {
             static const double f[] = {0.25, 0.5, 1.0, 2.0};
