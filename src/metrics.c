@@ -45,78 +45,116 @@ static double shape_reach(const body_shape *s, const double *q)
     return h;
 }
 
+/* A rise from a local minimum being followed (body_metrics). */
+typedef struct rise {
+    int up;             /* 1 while rising clearly above zmin */
+    double zmin, zmax;  /* m: the minimum, and the peak since */
+    double peak_depth;  /* m: depth at the peak */
+} rise;
+
+/* Ends the rise being followed: a bounce if the body was on the surface at its peak. */
+static void close_rise(rise *r, double R, stf_body_metrics *b)
+{
+    if (r->up && r->peak_depth <= 0.5 * R) {
+        b->bounces++;
+        if (r->zmax - r->zmin > b->max_rebound_height) b->max_rebound_height = r->zmax - r->zmin;
+    }
+    r->up = 0;
+}
+
 static void body_metrics(const stf_h5r *r, const char *name, double surface,
                          const run_geometry *g, stf_body_metrics *b)
 {
     memset(b, 0, sizeof *b);
     snprintf(b->name, sizeof b->name, "%s", name);
     b->first_contact_time = b->sink_time = b->float_duration = NAN;
-    b->rest_time = b->rest_duration = NAN;
+    b->rest_time = b->rolling_ratio = NAN;
     char key[128];
     snprintf(key, sizeof key, "body.%s.half_height", name);
-    double hh = attr_or(r, key, 0.0);
+    double R = attr_or(r, key, 0.0);
+    b->radius = R;
     snprintf(key, sizeof key, "body.%s.shape", name); /* the reach follows the orientation */
     char *shape_text = stf_h5r_attr_string(r, key);
     body_shape shape = {{0}, {0, 0, 0}};
     int oriented = shape_text && sscanf(shape_text, "%15s %lf %lf %lf", shape.kind, &shape.a[0],
                                         &shape.a[1], &shape.a[2]) >= 2;
     free(shape_text);
-    double *t = NULL, *p = NULL, *v = NULL, *qs = NULL;
-    int n = stf_h5r_body_series(r, name, &t, &p, &qs, &v, NULL, NULL);
-    if (n <= 0) goto done;
-    int contact = -1, descending = 1;
-    double zmin = 0, zmax = 0;
+    double *t = NULL, *p = NULL, *v = NULL, *qs = NULL, *w = NULL;
+    int n = stf_h5r_body_series(r, name, &t, &p, &qs, &v, &w, NULL);
+    double *depth = n > 0 ? malloc((size_t)n * sizeof *depth) : NULL;
+    if (n <= 0 || !depth) goto done;
+    int contact = -1;
     for (int i = 0; i < n; i++) {
-        double z = p[3 * i + 2], reach = oriented ? shape_reach(&shape, qs + 4 * i) : hh;
-        if (contact < 0) {
-            if (!(z - reach <= surface + g->spacing)) continue; /* no fluid (NaN): never */
-            contact = i;
-            b->first_contact_time = t[i];
-            zmin = zmax = z;
+        double reach = oriented ? shape_reach(&shape, qs + 4 * i) : R;
+        depth[i] = surface - (p[3 * i + 2] - reach); /* NaN without fluid: never in contact */
+        if (contact < 0 && depth[i] > 0) contact = i;
+    }
+    if (contact < 0) goto done;
+    double tc = t[contact];
+    b->first_contact_time = tc;
+    /* penetration, bounces, roll */
+    rise up = {0, p[3 * contact + 2], p[3 * contact + 2], depth[contact]};
+    double ratio_sum = 0, ratio_path = 0;
+    for (int i = contact; i < n; i++) {
+        double z = p[3 * i + 2];
+        if (t[i] <= tc + STF_PENETRATION_WINDOW && depth[i] > b->penetration_depth)
+            b->penetration_depth = depth[i];
+        if (!up.up) {
+            if (z < up.zmin) up.zmin = z;
+            if (z >= up.zmin + g->min_rise) up.up = 1, up.zmax = z, up.peak_depth = depth[i];
+        } else if (z > up.zmax) {
+            up.zmax = z, up.peak_depth = depth[i];
+        } else if (z <= up.zmax - g->min_rise) { /* coming down again: the rise is over */
+            close_rise(&up, R, b);
+            up.zmin = z;
         }
-        if (i > contact && z > surface) {
+        if (i > contact && depth[i] <= 0.5 * R && depth[i - 1] <= 0.5 * R) {
             double dx = p[3 * i] - p[3 * i - 3], dy = p[3 * i + 1] - p[3 * i - 2];
-            b->roll_distance += sqrt(dx * dx + dy * dy);
-        }
-        if (isnan(b->sink_time) && z + reach < surface) b->sink_time = t[i];
-        if (!isnan(b->sink_time)) continue; /* under the surface: a rise is not a bounce */
-        if (descending) {
-            if (z < zmin) zmin = z;
-            if (z >= zmin + g->min_rise) { /* a bounce: risen clearly above the minimum */
-                b->bounces++;
-                descending = 0;
-                zmax = z;
-                if (zmax - zmin > b->max_rebound_height) b->max_rebound_height = zmax - zmin;
-            }
-        } else {
-            if (z > zmax) zmax = z;
-            if (zmax - zmin > b->max_rebound_height) b->max_rebound_height = zmax - zmin;
-            if (z <= zmax - g->min_rise) {
-                descending = 1;
-                zmin = z;
+            double ds = sqrt(dx * dx + dy * dy);
+            b->roll_distance += ds;
+            const double *vi = v + 3 * i, *wi = w + 3 * i;
+            double vh = sqrt(vi[0] * vi[0] + vi[1] * vi[1]);
+            if (vh > STF_REST_SPEED) {
+                ratio_sum += ds * sqrt(wi[0] * wi[0] + wi[1] * wi[1]) * R / vh;
+                ratio_path += ds;
             }
         }
     }
-    if (!isnan(b->sink_time) && !isnan(b->first_contact_time))
-        b->float_duration = b->sink_time - b->first_contact_time;
-    for (int a = 0; a < 3; a++) b->final_position[a] = p[3 * (n - 1) + a];
-    if (contact >= 0) { /* rest: slower than STF_REST_SPEED from then until sink or end */
-        double end = isnan(b->sink_time) ? t[n - 1] : b->sink_time;
-        int rest = -1;
-        for (int i = contact; i < n && t[i] <= end; i++) {
-            const double *w = v + 3 * i;
-            if (sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) >= STF_REST_SPEED) rest = -1;
-            else if (rest < 0) rest = i;
+    close_rise(&up, R, b); /* a rise still going at the end counts too */
+    if (ratio_path > 0) b->rolling_ratio = ratio_sum / ratio_path;
+    /* rest on the surface: the longest span of slow samples at depth <= R */
+    int best = -1, start = -1;
+    for (int i = contact; i <= n; i++) {
+        int slow = 0;
+        if (i < n) {
+            const double *vi = v + 3 * i;
+            slow = sqrt(vi[0] * vi[0] + vi[1] * vi[1] + vi[2] * vi[2]) < STF_REST_SPEED &&
+                   depth[i] <= R;
         }
-        if (rest >= 0 && t[rest] < end) {
-            b->rest_time = t[rest];
-            b->rest_duration = end - t[rest];
+        if (slow && start < 0) start = i;
+        if (!slow && start >= 0) {
+            double span = t[i < n ? i : n - 1] - t[start];
+            if (span > b->rest_on_surface || best < 0) b->rest_on_surface = span, best = start;
+            start = -1;
+        }
+    }
+    if (best >= 0) b->rest_time = t[best];
+    for (int i = best >= 0 ? best : contact; i < n; i++) {
+        double above = oriented ? shape_reach(&shape, qs + 4 * i) : R;
+        if (p[3 * i + 2] + above < surface) {
+            b->sink_time = t[i];
+            b->float_duration = t[i] - tc;
+            break;
         }
     }
 done:
+    if (n > 0)
+        for (int a = 0; a < 3; a++) b->final_position[a] = p[3 * (n - 1) + a];
+    free(depth);
     free(t);
     free(p);
     free(v);
+    free(w);
     free(qs);
 }
 
@@ -483,15 +521,18 @@ char *stf_metrics_json(const stf_metrics *m)
     put(&b, ",\n \"bodies\": {");
     for (int k = 0; k < m->nbodies; k++) {
         const stf_body_metrics *o = &m->bodies[k];
-        put(&b, "%s\n  \"%s\": {\"first_contact_time\": ", k ? "," : "", o->name);
-        put_num(&b, o->first_contact_time);
-        put(&b, ", \"bounces\": %d, \"max_rebound_height\": ", o->bounces);
-        put_num(&b, o->max_rebound_height);
+        put(&b, "%s\n  \"%s\": {\"radius\": ", k ? "," : "", o->name);
+        put_num(&b, o->radius);
+        put_field(&b, "first_contact_time", o->first_contact_time);
+        put_field(&b, "penetration_depth", o->penetration_depth);
+        put(&b, ", \"bounces\": %d", o->bounces);
+        put_field(&b, "max_rebound_height", o->max_rebound_height);
         put_field(&b, "roll_distance", o->roll_distance);
+        put_field(&b, "rolling_ratio", o->rolling_ratio);
+        put_field(&b, "rest_on_surface", o->rest_on_surface);
+        put_field(&b, "rest_time", o->rest_time);
         put_field(&b, "sink_time", o->sink_time);
         put_field(&b, "float_duration", o->float_duration);
-        put_field(&b, "rest_time", o->rest_time);
-        put_field(&b, "rest_duration", o->rest_duration);
         put(&b, ", \"final_position\": [");
         for (int a = 0; a < 3; a++) {
             if (a) put(&b, ", ");
@@ -514,19 +555,32 @@ char *stf_metrics_json(const stf_metrics *m)
     return b.s;
 }
 
+const char *const stf_body_metric_names[] = {
+    "radius",          "first_contact_time", "penetration_depth", "bounces",
+    "max_rebound_height", "roll_distance",   "rolling_ratio",     "rest_on_surface",
+    "rest_time",       "sink_time",          "float_duration",    NULL};
+
 static int body_field(const stf_body_metrics *b, const char *f, double *v)
 {
-    if (!strcmp(f, "first_contact_time")) *v = b->first_contact_time;
+    if (!strcmp(f, "radius")) *v = b->radius;
+    else if (!strcmp(f, "first_contact_time")) *v = b->first_contact_time;
+    else if (!strcmp(f, "penetration_depth")) *v = b->penetration_depth;
     else if (!strcmp(f, "bounces")) *v = b->bounces;
     else if (!strcmp(f, "max_rebound_height")) *v = b->max_rebound_height;
     else if (!strcmp(f, "roll_distance")) *v = b->roll_distance;
+    else if (!strcmp(f, "rolling_ratio")) *v = b->rolling_ratio;
+    else if (!strcmp(f, "rest_on_surface")) *v = b->rest_on_surface;
+    else if (!strcmp(f, "rest_time")) *v = b->rest_time;
     else if (!strcmp(f, "sink_time")) *v = b->sink_time;
     else if (!strcmp(f, "float_duration")) *v = b->float_duration;
-    else if (!strcmp(f, "rest_time")) *v = b->rest_time;
-    else if (!strcmp(f, "rest_duration")) *v = b->rest_duration;
     else return -1;
     return 0;
 }
+
+const char *const stf_fluid_metric_names[] = {
+    "particles",     "escaped",           "max_speed",        "com_rebound_height",
+    "finger_height", "surface_roughness", "final_com_height", "impact_time",
+    "solid_duration", "splash_height",    NULL};
 
 int stf_metrics_get(const stf_metrics *m, const char *key, double *v)
 {

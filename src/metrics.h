@@ -2,23 +2,34 @@
  *
  * Definitions (the one place they live):
  * - surface_height: top of the fluid at t = 0: the highest particle centre + spacing/2.
- * - contact: a body's lowest point (centre z - half_height; with a "body.NAME.shape"
- *   attribute, the shape's reach below its centre at the sample's orientation, so a box
- *   or a cylinder lying on its side counts from its true underside) is within one spacing of
- *   surface_height. first_contact_time is the first body sample in contact.
- * - bounce: after first contact and before sink_time, the centre rises by at least
- *   bounce_min_rise above a local minimum; max_rebound_height is the largest such rise (local
- *   minimum to the next peak). A body that has sunk and is lifted by the fluid sloshing back
- *   off the floor does not bounce.
- * - roll_distance: horizontal path length after first contact while the centre is above
- *   surface_height.
- * - sink_time: first time the body's top (centre z + half_height, or the oriented reach
- *   above the centre as for contact) is below surface_height;
+ * Body metrics, for a body of radius R (a sphere's radius; the half height for other shapes,
+ * "body.NAME.half_height"), with S = surface_height and depth(t) = S - the body's lowest point
+ * (centre z - its reach below the centre: with a "body.NAME.shape" attribute the shape's
+ * support along -z at the sample's orientation, so a box or a cylinder lying on its side
+ * counts from its true underside; else R). A body "on the surface" has depth <= R/2: at most
+ * a quarter of a sphere's diameter in the fluid.
+ * - first_contact_time: the first sample with depth > 0.
+ * - penetration_depth: the largest depth within STF_PENETRATION_WINDOW (0.5 s) of contact.
+ * - bounce: after contact, the centre rises by at least bounce_min_rise from a local minimum
+ *   and the body is on the surface (depth <= R/2) at the peak of that rise;
+ *   max_rebound_height is the largest such rise (local minimum to the next peak). A heave of a
+ *   body that stays deep in the fluid, or a sunk body lifted by the slosh, is no bounce.
+ * - roll_distance: horizontal path length after contact over the samples where the body is
+ *   on the surface (both ends of a sample interval at depth <= R/2).
+ * - rolling_ratio: the mean of |omega_h| R / |v_h| over that path, weighted by path length,
+ *   over the intervals where |v_h| > STF_REST_SPEED (omega_h, v_h: the horizontal parts of
+ *   the angular and linear velocity): 1 for rolling without slip, 0 for sliding; NAN when the
+ *   body never moves faster than that on the surface.
+ * - rest_on_surface: the longest time span after contact over which the body's speed stays
+ *   below STF_REST_SPEED (0.05 m/s) and its depth <= R (from the span's first sample to the
+ *   first sample that breaks it, or the run's end); rest_time: when that span starts (NAN and
+ *   rest_on_surface 0 if never).
+ * - sink_time: the first time, from the start of that rest on (from contact when it never
+ *   rests), that the body's top (centre z + its reach above the centre) is below S;
  *   float_duration = sink_time - first_contact_time.
- * - rest_time: the first time after first contact from which the body's speed stays below
- *   STF_REST_SPEED (0.05 m/s) until it sinks or the run ends (NAN if never);
- *   rest_duration = (sink_time, or the end of the run) - rest_time: how long it rests on
- *   the surface before it sinks.
+ * These replace the loose definitions of earlier versions (contact within a spacing of the
+ * surface, a "bounce" of a body deep under, roll counted while the centre was above S, rest
+ * at any depth), which let a plunging ball pass as bouncing, rolling and resting.
  * - fluid.com_rebound_height: the largest rise of the fluid's centre of mass above any
  *   earlier height of it (a dropped blob's rebound; 0 if it never rises).
  * - fluid.splash_height: the same rise for the fluid's top, the 99th percentile of the
@@ -52,19 +63,23 @@
 #include <stddef.h>
 
 #define STF_METRICS_MAX_BODIES 16
-#define STF_REST_SPEED 0.05 /* m/s: a body slower than this rests (rest_time) */
+#define STF_REST_SPEED 0.05 /* m/s: a body slower than this rests; rolling_ratio counts faster */
+#define STF_PENETRATION_WINDOW 0.5 /* s after contact over which penetration_depth is taken */
 #define STF_LINK_SPACINGS 1.5 /* spacings: neighbours closer than this are connected (finger_height) */
 
 typedef struct stf_body_metrics {
     char name[64];
+    double radius;             /* m: R of the definitions above */
     double first_contact_time; /* s, NAN if never */
+    double penetration_depth;  /* m, 0 if never in contact */
     int bounces;
     double max_rebound_height; /* m */
     double roll_distance;      /* m */
+    double rolling_ratio;      /* 1, NAN if it never moved on the surface */
+    double rest_on_surface;    /* s, 0 if it never rested on the surface */
+    double rest_time;          /* s, start of that rest, NAN if never */
     double sink_time;          /* s, NAN if never */
     double float_duration;     /* s, NAN if it never touched or never sank */
-    double rest_time;          /* s, NAN if it never came to rest above the surface */
-    double rest_duration;      /* s, NAN if it never came to rest above the surface */
     double final_position[3];  /* m */
 } stf_body_metrics;
 
@@ -85,6 +100,11 @@ typedef struct stf_metrics {
     double solid_duration;     /* s, NAN without an impact */
     double splash_height;      /* m */
 } stf_metrics;
+
+/* The metric names an expect block may use, NULL-terminated: a body's (after "NAME." or
+ * alone for the first body) and the fluid's (after "fluid."). */
+extern const char *const stf_body_metric_names[];
+extern const char *const stf_fluid_metric_names[];
 
 /* Computes the metrics of the run in path. Returns 0, or 2 with a message (bad file). */
 int stf_metrics_compute(const char *path, stf_metrics *m, char *err, size_t errlen);

@@ -965,13 +965,8 @@ static int parse_bodies(loader *L, const mapv *top)
 /* ---------------------------------------------------------------------------- expect */
 
 static const char *const top_metrics[] = {"time_end", "surface_height", NULL};
-static const char *const body_metrics[] = {
-    "first_contact_time", "bounces", "max_rebound_height", "roll_distance", "sink_time",
-    "float_duration",     "rest_time", "rest_duration", NULL};
-static const char *const fluid_metrics[] = {
-    "particles",     "escaped",           "max_speed", "com_rebound_height",
-    "finger_height", "surface_roughness", "final_com_height", "impact_time", "solid_duration",
-    "splash_height", NULL};
+#define body_metrics stf_body_metric_names
+#define fluid_metrics stf_fluid_metric_names
 
 static int in_list(const char *s, const char *const *list)
 {

@@ -153,40 +153,101 @@ static stf_h5 *body_over_layer(const char *path, const char *name, double half_h
     return h;
 }
 
-/* A body of half height 0.1 m over a flat layer (surface 0.05 m + S/2 = 0.055 m): falls to
- * contact at t = 0.1, bounces 3 cm, then from t = 0.5 creeps down at 1 cm/s (resting: slower
- * than STF_REST_SPEED) until its top passes below the surface. Every metric is known. */
+/* A piecewise-linear path sampled every 10 ms: phase k runs from t[k] with velocity v[k]
+ * (and angular velocity w[k]); position and velocity of sample t (the velocity of the interval
+ * ending at t, so sums over intervals see the phase that made them). */
+typedef struct path_phase {
+    double t, v[3], w[3];
+} path_phase;
+
+static void write_path(stf_h5 *h, const char *name, const double x0[3], const path_phase *ph,
+                       int nph, double t_end)
+{
+    const double q[4] = {1, 0, 0, 0}, f[3] = {0};
+    for (int i = 0; i * 0.01 <= t_end + 1e-9; i++) {
+        double t = i * 0.01, pos[3] = {x0[0], x0[1], x0[2]};
+        int k = 0; /* the phase of the interval ending at t */
+        for (int j = 0; j < nph; j++)
+            if (ph[j].t < t - 0.005) k = j;
+        for (int j = 0; j < nph; j++) { /* integrate the phases up to t, exactly */
+            double a = ph[j].t, b = j + 1 < nph ? ph[j + 1].t : 1e9;
+            double dt = (t < b ? t : b) - a;
+            if (dt > 0)
+                for (int c = 0; c < 3; c++) pos[c] += ph[j].v[c] * dt;
+        }
+        CHECK(stf_h5_body_append(h, name, t, pos, q, ph[k].v, ph[k].w, f) == 0, "row %d", i);
+    }
+}
+
+/* A ball of radius R = 0.1 m over a flat layer (surface S = 0.05 m + spacing/2 = 0.055 m; on
+ * the surface while its centre is above S + R/2 = 0.105 m): it falls to contact, sinks in
+ * 3.5 cm, bounces 3 cm, rolls 5 cm without slip and slides 5 cm, rests 1.5 s (the last 0.5 s
+ * creeping down slower than 5 cm/s), then sinks. Every metric is known. */
 static void test_body(const char *path)
 {
     stf_h5 *h = body_over_layer(path, "ball", 0.1, 0.01);
     if (!h) return;
-    const double dt = 0.01, q[4] = {1, 0, 0, 0}, w[3] = {0}, f[3] = {0};
-    double z = 0.3;
-    for (int i = 0; i <= 300; i++) {
-        double t = i * dt, vz;
-        if (t < 0.1 - 1e-9) vz = -(0.3 - 0.15) / 0.1;       /* falls to z = 0.15 (contact) */
-        else if (t < 0.2 - 1e-9) vz = -0.5;                  /* sinks in to 0.10 */
-        else if (t < 0.3 - 1e-9) vz = 0.3;                   /* rebounds to 0.13 */
-        else if (t < 0.5 - 1e-9) vz = -0.1;                  /* settles to 0.11 */
-        else vz = -0.01;                                     /* creeps: rests, then sinks */
-        double pos[3] = {0.1, 0.1, z}, vel[3] = {0, 0, vz};
-        CHECK(stf_h5_body_append(h, "ball", t, pos, q, vel, w, f) == 0, "body row %d", i);
-        z += vz * dt;
-    }
+    const path_phase ph[] = {
+        {0.0, {0, 0, -1.5}, {0, 0, 0}},   /* z 0.3 -> 0.15: contact at the sample 0.10 */
+        {0.1, {0, 0, -0.3}, {0, 0, 0}},   /* -> 0.12: depth 0.035 */
+        {0.2, {0, 0, 0.3}, {0, 0, 0}},    /* -> 0.15: a bounce of 3 cm, its peak at depth 0.005 */
+        {0.3, {0.5, 0, -0.05}, {0, 5, 0}},/* rolls 5 cm (omega R = v), to z = 0.145 */
+        {0.4, {0.5, 0, -0.15}, {0, 0, 0}},/* slides 5 cm, to z = 0.13 */
+        {0.5, {0, 0, 0}, {0, 0, 0}},      /* rests at depth 0.025 */
+        {1.5, {0, 0, -0.04}, {0, 0, 0}},  /* creeps (slow: still resting) to z = 0.11 */
+        {2.0, {0, 0, -0.2}, {0, 0, 0}},   /* sinks: top below S when z < -0.045, t > 2.775 */
+    };
+    const double x0[3] = {0.1, 0.1, 0.3};
+    write_path(h, "ball", x0, ph, 8, 3.0);
     stf_metrics m;
     close_and_measure(h, path, &m);
     CHECK(m.nbodies == 1, "bodies %d", m.nbodies);
     if (m.nbodies != 1) return;
     const stf_body_metrics *b = &m.bodies[0];
-    /* contact: z - 0.1 <= 0.055 + S, i.e. z <= 0.165, first at t = 0.09 (z = 0.165) */
-    CHECK_NEAR(b->first_contact_time, 0.09, 1e-9, "first_contact_time");
+    CHECK_NEAR(b->radius, 0.1, 1e-12, "radius");
+    CHECK_NEAR(b->first_contact_time, 0.10, 1e-9, "first_contact_time (depth > 0)");
+    CHECK_NEAR(b->penetration_depth, 0.035, 1e-9, "penetration_depth");
     CHECK(b->bounces == 1, "bounces %d", b->bounces);
     CHECK_NEAR(b->max_rebound_height, 0.03, 1e-9, "max_rebound_height");
-    /* sink: z + 0.1 < 0.055, z < -0.045: z = 0.11 - 0.01 (t - 0.5) gives t > 16 s: never */
-    CHECK(b->sink_time != b->sink_time, "sink_time %g", b->sink_time);
-    /* rest: the speed drops below 0.05 m/s at t = 0.5 and stays there */
-    CHECK_NEAR(b->rest_time, 0.5, 1e-9, "rest_time");
-    CHECK_NEAR(b->rest_duration, 2.5, 1e-9, "rest_duration (to the end of the run)");
+    CHECK_NEAR(b->roll_distance, 0.10, 1e-9, "roll_distance (on the surface)");
+    CHECK_NEAR(b->rolling_ratio, 0.5, 1e-6, "rolling_ratio: half the path rolled, half slid");
+    CHECK_NEAR(b->rest_time, 0.51, 1e-9, "rest_time");
+    CHECK_NEAR(b->rest_on_surface, 1.5, 1e-9, "rest_on_surface (0.51 to 2.01)");
+    CHECK_NEAR(b->sink_time, 2.78, 1e-9, "sink_time");
+    CHECK_NEAR(b->float_duration, 2.68, 1e-9, "float_duration");
+}
+
+/* A plunge: the ball of test_body comes in at 1 m/s down and 1 m/s along x, goes 1.55 R deep,
+ * heaves 2.5 cm while deep and sinks. The heave is no bounce, the path under the surface is no
+ * roll, a slow moment deep in the fluid is no rest: under the loose definitions of earlier
+ * versions this ball bounced and rolled. */
+static void test_plunge(const char *path)
+{
+    stf_h5 *h = body_over_layer(path, "ball", 0.1, 0.01);
+    if (!h) return;
+    const path_phase ph[] = {
+        {0.0, {1, 0, -1}, {0, 0, 0}},      /* z 0.2 -> 0.0 (depth 0.155); on the surface to z 0.105 */
+        {0.2, {0, 0, 0.25}, {0, 0, 0}},    /* heaves to 0.025 (depth 0.13) */
+        {0.3, {0, 0, -0.02}, {0, 0, 0}},   /* slow, 1 s, deep: depth 0.13 to 0.15 > R */
+        {1.3, {0, 0, -0.3}, {0, 0, 0}},    /* sinks: top below S when z < -0.045, t > 1.4667 */
+    };
+    const double x0[3] = {0.0, 0.1, 0.2};
+    write_path(h, "ball", x0, ph, 4, 2.5);
+    stf_metrics m;
+    close_and_measure(h, path, &m);
+    CHECK(m.nbodies == 1, "bodies %d", m.nbodies);
+    if (m.nbodies != 1) return;
+    const stf_body_metrics *b = &m.bodies[0];
+    CHECK_NEAR(b->first_contact_time, 0.05, 1e-9, "first_contact_time of the plunge");
+    CHECK(b->penetration_depth >= 1.5 * 0.1, "penetration_depth %g", b->penetration_depth);
+    CHECK_NEAR(b->penetration_depth, 0.155, 1e-9, "penetration_depth (at t = 0.2)");
+    CHECK(b->bounces == 0, "a heave 1.3 R deep is no bounce (bounces %d)", b->bounces);
+    /* on the surface from contact (z 0.15) to z >= 0.105: the samples 0.05 .. 0.09 */
+    CHECK_NEAR(b->roll_distance, 0.04, 1e-9, "roll_distance of the plunge: its first 4 cm only");
+    CHECK_NEAR(b->rolling_ratio, 0.0, 1e-12, "rolling_ratio of a slide");
+    CHECK(b->rest_on_surface == 0, "rest_on_surface %g deep in the fluid", b->rest_on_surface);
+    CHECK(b->rest_time != b->rest_time, "rest_time %g", b->rest_time);
+    CHECK_NEAR(b->sink_time, 1.47, 1e-9, "sink_time of the plunge");
 }
 
 /* A body that touches and rises clearly (a bounce) in the run's last sample: the bounce is
@@ -209,8 +270,8 @@ static void test_bounce_at_end(const char *path)
 /* A slab (box, half extents 0.03 x 0.005 x 0.005 m) turned 90 degrees about y: it stands
  * 0.03 m below and above its centre, not its local half height 0.005 m. It comes down at
  * 1 m/s from z = 0.202 over the surface at 0.055 m (samples every 5 ms): its underside is
- * within a spacing at z <= 0.095 (t >= 0.107 s: the sample at 0.11 s), its top below the
- * surface at z < 0.025 (t > 0.177 s: 0.18 s). */
+ * below the surface at z < 0.085 (t > 0.117 s: the sample at 0.12 s), its top at z < 0.025
+ * (t > 0.177 s: 0.18 s). */
 static void test_turned_slab(const char *path)
 {
     stf_h5 *h = body_over_layer(path, "slab", 0.005, 0);
@@ -225,7 +286,7 @@ static void test_turned_slab(const char *path)
     close_and_measure(h, path, &m);
     CHECK(m.nbodies == 1, "bodies %d", m.nbodies);
     if (m.nbodies != 1) return;
-    CHECK_NEAR(m.bodies[0].first_contact_time, 0.11, 1e-9, "first_contact_time of the turned slab");
+    CHECK_NEAR(m.bodies[0].first_contact_time, 0.12, 1e-9, "first_contact_time of the turned slab");
     CHECK_NEAR(m.bodies[0].sink_time, 0.18, 1e-9, "sink_time of the turned slab");
 }
 
@@ -294,6 +355,7 @@ int main(void)
     test_finger_height(path);
     test_drop(path);
     test_body(path);
+    test_plunge(path);
     test_bounce_at_end(path);
     test_turned_slab(path);
     test_no_fluid(path);

@@ -7,6 +7,14 @@
 #include "cli.h"
 #include "metrics.h"
 
+/* The unit of a body metric (metrics.h). */
+static const char *metric_unit(const char *key)
+{
+    if (!strcmp(key, "rolling_ratio")) return "(omega R / v)";
+    if (strstr(key, "time") || strstr(key, "duration") || !strcmp(key, "rest_on_surface")) return "s";
+    return "m";
+}
+
 static void line(const char *name, double v, const char *unit)
 {
     if (isnan(v)) printf("  %-22s never\n", name);
@@ -46,14 +54,15 @@ int cli_report(int argc, char **argv)
     for (int k = 0; k < m.nbodies; k++) {
         const stf_body_metrics *b = &m.bodies[k];
         printf(" body %s\n", b->name);
-        line("first_contact_time", b->first_contact_time, "s");
-        printf("  %-22s %d\n", "bounces", b->bounces);
-        line("max_rebound_height", b->max_rebound_height, "m");
-        line("roll_distance", b->roll_distance, "m");
-        line("sink_time", b->sink_time, "s");
-        line("float_duration", b->float_duration, "s");
-        line("rest_time", b->rest_time, "s");
-        line("rest_duration", b->rest_duration, "s");
+        for (int f = 0; stf_body_metric_names[f]; f++) {
+            const char *key = stf_body_metric_names[f];
+            double v;
+            char full[160];
+            snprintf(full, sizeof full, "%s.%s", b->name, key);
+            stf_metrics_get(&m, full, &v);
+            if (!strcmp(key, "bounces")) printf("  %-22s %d\n", key, b->bounces);
+            else line(key, v, metric_unit(key));
+        }
         printf("  %-22s %.4g %.4g %.4g m\n", "final_position", b->final_position[0],
                b->final_position[1], b->final_position[2]);
     }

@@ -626,11 +626,8 @@ static void collect(const sweep_args *a, sweep_plan *p)
     }
 }
 
-static const char *BODY_FIELDS[] = {"first_contact_time", "bounces", "max_rebound_height", "roll_distance",
-                                    "sink_time", "float_duration", "rest_time", "rest_duration", NULL};
-static const char *FLUID_FIELDS[] = {"particles", "escaped", "max_speed", "com_rebound_height",
-                                     "finger_height", "surface_roughness", "final_com_height",
-                                     "impact_time", "solid_duration", "splash_height", NULL};
+#define BODY_FIELDS stf_body_metric_names
+#define FLUID_FIELDS stf_fluid_metric_names
 
 static int write_summary(const sweep_args *a, const sweep_plan *p)
 {
