@@ -2,6 +2,7 @@
 #include "fluid.h"
 
 #include "cy.h"
+#include "gauss_seidel.h"
 
 #include <math.h>
 #include <omp.h>
@@ -27,6 +28,8 @@ stf_fluid_def stf_default_fluid_def(void)
     d.k_min = 100.0;
     d.yield_ratio = 0.0;
     d.plasticity = 2.0;
+    d.relaxation = STF_RELAX_JACOBI;
+    d.iterations = 1;
     d.q = 0.5;
     d.d = 150;
     d.memory = 0.0;
@@ -95,6 +98,10 @@ static int check_def(const stf_fluid_def *d, char *err, size_t errlen)
         FAIL("yield_ratio: must be in [0,1] (got %g)", d->yield_ratio);
     if (!(d->plasticity >= 0 && isfinite(d->plasticity)))
         FAIL("plasticity: must be >= 0 (got %g)", d->plasticity);
+    if (d->relaxation != STF_RELAX_JACOBI && d->relaxation != STF_RELAX_GAUSS_SEIDEL)
+        FAIL("relaxation: must be jacobi or gauss_seidel (got %d)", d->relaxation);
+    if (!(d->iterations >= 1 && d->iterations <= 64))
+        FAIL("iterations: must be in [1, 64] (got %d)", d->iterations);
     if (d->effects & STF_EFFECT_HISTORY) {
         if (!(d->effects & STF_EFFECT_SPRINGS)) FAIL("history: needs the springs effect");
         if (!(d->q > 0 && d->q < 1)) FAIL("q: must be in (0,1) (got %g)", d->q);
@@ -161,6 +168,11 @@ int stf_fluid_create(const stf_fluid_def *def, stf_fluid **out, char *err, size_
     if (def->rest_density > 0) f->rest_density = def->rest_density;
     f->reorder_interval = 16;
     pressure_wall_table(f);
+    if (def->model == STF_MODEL_CLAVET_STF && def->relaxation == STF_RELAX_GAUSS_SEIDEL &&
+        (def->effects & STF_EFFECT_SPRINGS) && !(f->gs = calloc(1, sizeof *f->gs))) {
+        free(f);
+        FAIL("out of memory");
+    }
     if (def->model == STF_MODEL_CARREAU_YASUDA && cy_create(f) != 0) {
         free(f);
         FAIL("out of memory");
@@ -183,6 +195,8 @@ void stf_fluid_destroy(stf_fluid *f)
     free(f->rho_near);
     free(f->khist_mean);
     grid_free(&f->grid);
+    if (f->gs) gs_free(f->gs);
+    free(f->gs);
     cy_free(f);
     if (f->springs.n_alloc) springs_free(&f->springs);
     if (f->hist.n_alloc) history_free(&f->hist);
@@ -584,7 +598,11 @@ double stf_fluid_max_speed(const stf_fluid *f)
     return sqrt(m2);
 }
 
-double stf_fluid_spring_gain(const stf_fluid *f) { return f->springs.n_alloc ? f->springs.max_gain : 0; }
+double stf_fluid_spring_gain(const stf_fluid *f)
+{
+    /* compliant constraints (gauss_seidel.c) are stable at any gain: nothing limits the step */
+    return f->springs.n_alloc && !f->gs ? f->springs.max_gain : 0;
+}
 double stf_fluid_last_dt(const stf_fluid *f) { return f->dt_now; }
 
 long stf_fluid_saturated_steps(const stf_fluid *f)
@@ -651,13 +669,15 @@ int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
         "particle_mass: %.9g  # kg\njitter: %.9g  # spacings\ngravity: [%.9g, %.9g, %.9g]  # m/s^2\n"
         "sigma: %.9g  # 1/s\nbeta: %.9g  # 1/m\nk: %.9g  # m/s^2\nk_near: %.9g  # m/s^2\n"
         "tension: %s\nrest_density: %.9g  # kernel sum\nrest_near_density: %.9g  # kernel sum\n"
-        "k_min: %.9g  # 1/s^2\nyield_ratio: %.9g\nplasticity: %.9g  # 1/s\nq: %.9g\n"
+        "k_min: %.9g  # 1/s^2\nyield_ratio: %.9g\nplasticity: %.9g  # 1/s\n"
+        "relaxation: %s\niterations: %d\nq: %.9g\n"
         "history_mode: %s\nhistory_steps: %d\nk_hist: %.9g  # 1/s^2 per m/s^q\n"
         "reference_spacing: %.9g  # m\nk_onset: %.9g  # 1/s^2\n"
         "stick: %.9g  # 1/s\n",
         effects, d->spacing, f->h, d->density, f->mass, d->jitter, d->gravity[0], d->gravity[1],
         d->gravity[2], d->sigma, d->beta, d->k, d->k_near, d->tension ? "true" : "false",
-        f->rest_density, f->rest_near, d->k_min, d->yield_ratio, d->plasticity, d->q,
+        f->rest_density, f->rest_near, d->k_min, d->yield_ratio, d->plasticity,
+        d->relaxation == STF_RELAX_GAUSS_SEIDEL ? "gauss_seidel" : "jacobi", d->iterations, d->q,
         d->history_mode == STF_HISTORY_FULL  ? "full"
         : d->history_mode == STF_HISTORY_SOE ? "soe"
                                              : "window",

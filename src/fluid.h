@@ -40,6 +40,7 @@ struct stf_fluid {
 
     stf_grid grid;       /* neighbours within h, rebuilt every step */
     stf_springs springs; /* allocated only with the springs effect */
+    struct stf_gs *gs;   /* Gauss-Seidel springs (relaxation: gauss_seidel) */
     stf_history hist;    /* allocated only with the history effect */
     double *rho, *rho_near; /* n each, pressure effect only */
     float *khist_mean;      /* n: mean history stiffness of a particle's springs, 1/s^2 */

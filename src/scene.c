@@ -452,7 +452,9 @@ static int parse_blocks(loader *L, const mapv *fluid)
 
 static int parse_fluid(loader *L, const mapv *top)
 {
-    static const char *const keys[] = {"model", "spacing", "density", "h", "jitter", "blocks", NULL};
+    static const char *const keys[] = {"model", "spacing", "density", "h", "jitter", "blocks",
+                                       "relaxation", "iterations", NULL};
+    static const char *const relaxations[] = {"jacobi", "gauss_seidel", NULL};
     static const char *const models[] = {"clavet_stf", "carreau_yasuda", NULL};
     stf_fluid_def *f = &L->s->fluid;
     struct fy_node *k, *v = lookup(top, "fluid", &k);
@@ -474,6 +476,12 @@ static int parse_fluid(loader *L, const mapv *top)
        (h (rho - rho0) / (rho0 dt) in one step): its blocks start on the lattice by default */
     if (f->model == STF_MODEL_CARREAU_YASUDA && !has(&m, "jitter")) f->jitter = 0;
     if (f->jitter > 0.45) return fail_value(L, &m, "jitter", "must be in [0, 0.45]");
+    int relax;
+    if (get_choice(L, &m, "relaxation", relaxations, &relax) < 0) return SCENE_BAD;
+    if (has(&m, "relaxation")) f->relaxation = relax ? STF_RELAX_GAUSS_SEIDEL : STF_RELAX_JACOBI;
+    long it = f->iterations;
+    if (get_int(L, &m, "iterations", 1, 64, &it) < 0) return SCENE_BAD;
+    f->iterations = (int)it;
     return parse_blocks(L, &m);
 }
 

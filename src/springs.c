@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "fluid.h"
+#include "gauss_seidel.h"
 
 static int alloc_rows(stf_springs *s, int n_alloc, int stride)
 {
@@ -409,6 +410,8 @@ int springs_step(stf_fluid *f, double dt)
     for (int t = 0; t < nt; t++) free(spills[t].e);
     free(spills);
     if (rc != 0) return -1;
+    s->max_gain = most_gain;
+    if (f->gs) return gs_springs(f, dt, khist_scale); /* constraints instead (gauss_seidel.c) */
     if (most_gain > 1.0) { /* saturate (see saturated_one); the common case costs nothing more */
 #pragma omp parallel for schedule(static)
         for (int i = 0; i < n; i++) {

@@ -114,6 +114,12 @@ typedef struct stf_solver_stats {
     int viscosity_iterations_max;   /* most CG iterations of a substep */
 } stf_solver_stats;
 
+/* How the springs (Alg. 3 with Eq. 6) are applied (src/gauss_seidel.c):
+ * JACOBI: every spring's displacement from the same positions, saturated so that no spring
+ * does more than become rigid within the step (springs.c); GAUSS_SEIDEL: as compliant
+ * constraints one after the other, as Clavet's algorithm does, stable at any stiffness. */
+enum stf_relaxation { STF_RELAX_JACOBI = 0, STF_RELAX_GAUSS_SEIDEL = 1 };
+
 typedef struct stf_fluid_def {
     unsigned effects;      /* bit set of enum stf_effect */
     double spacing;        /* initial particle spacing, m (> 0) */
@@ -138,6 +144,8 @@ typedef struct stf_fluid_def {
     double k_min;          /* spring stiffness, 1/s^2 (>= 0) */
     double yield_ratio;    /* tolerated deformation / rest length, dimensionless (>= 0) */
     double plasticity;     /* rest-length creep rate alpha, 1/s (>= 0) */
+    int relaxation;        /* enum stf_relaxation: how the springs' displacements are applied */
+    int iterations;        /* gauss_seidel: sweeps over the spring constraints per step, 1..64 */
     /* history (Eq. 3-6): k = k_min + k_hist * dt^(1-q)/Gamma(3-q) * |sum a (v_i - v_j)| */
     double q;              /* fractional order, in (0,1) */
     int d;                 /* history window, steps (>= 1); ignored if memory > 0 */
@@ -295,7 +303,8 @@ long stf_fluid_saturated_steps(const stf_fluid *f);
 /* Largest particle speed, m/s (0 without particles). */
 double stf_fluid_max_speed(const stf_fluid *f);
 /* The last step's largest sum over a particle's springs of dt^2 k (1 - L/h) (before any
- * saturation; dimensionless, 0 without springs): the spring network's stiffness number. */
+ * saturation; dimensionless, 0 without springs): the spring network's stiffness number, which
+ * limits the Jacobi step; 0 with relaxation gauss_seidel, stable at any gain. */
 double stf_fluid_spring_gain(const stf_fluid *f);
 /* The length of the last step, s (0 before the first). */
 double stf_fluid_last_dt(const stf_fluid *f);
