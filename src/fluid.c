@@ -82,6 +82,10 @@ static int check_def(const stf_fluid_def *d, char *err, size_t errlen)
             FAIL("periodic: only the carreau_yasuda model has periodic axes");
     if (!(d->spacing > 0 && isfinite(d->spacing))) FAIL("spacing: must be > 0 (got %g)", d->spacing);
     if (!(d->density > 0 && isfinite(d->density))) FAIL("density: must be > 0 (got %g)", d->density);
+    if (!(d->material_spacing >= 0 && isfinite(d->material_spacing) && d->material_spacing <= 1))
+        FAIL("reference_spacing: must be in [0, 1] m (got %g)", d->material_spacing);
+    if (d->material_spacing > 0 && d->reference_spacing > 0)
+        FAIL("reference_spacing: give the material's (fluid) or the history's, not both");
     if (!(d->h == 0 || (d->h >= d->spacing && d->h <= 5 * d->spacing)))
         FAIL("h: must be 0 or in [spacing, 5*spacing] (got %g)", d->h);
     for (int a = 0; a < 3; a++)
@@ -100,6 +104,10 @@ static int check_def(const stf_fluid_def *d, char *err, size_t errlen)
         FAIL("plasticity: must be >= 0 (got %g)", d->plasticity);
     if (d->relaxation != STF_RELAX_JACOBI && d->relaxation != STF_RELAX_GAUSS_SEIDEL)
         FAIL("relaxation: must be jacobi or gauss_seidel (got %d)", d->relaxation);
+    if (!(d->projection >= 0 && d->projection <= 64))
+        FAIL("projection: must be in [0, 64] (got %d)", d->projection);
+    if (d->projection > 0 && d->relaxation != STF_RELAX_GAUSS_SEIDEL)
+        FAIL("projection: needs relaxation gauss_seidel");
     if (!(d->iterations >= 1 && d->iterations <= 64))
         FAIL("iterations: must be in [1, 64] (got %d)", d->iterations);
     if (d->effects & STF_EFFECT_HISTORY) {
@@ -157,6 +165,16 @@ int stf_fluid_create(const stf_fluid_def *def, stf_fluid **out, char *err, size_
     stf_fluid *f = calloc(1, sizeof *f);
     if (!f) FAIL("out of memory");
     f->def = *def;
+    if (def->material_spacing > 0) { /* the same continuum material (stf.h) */
+        double r = def->material_spacing / def->spacing;
+        f->def.k *= r;
+        f->def.k_near *= r;
+        f->def.sigma *= r * r;
+        f->def.beta *= r;
+        f->def.k_min *= r * r;
+        f->def.k_onset *= r * r;
+        f->def.k_hist *= r * r * r;
+    }
     f->h = def->h > 0 ? def->h : 2.0 * def->spacing;
     f->mass = def->density * def->spacing * def->spacing * def->spacing;
     /* With tension the rest density balances near-pressure on the lattice (see above);
@@ -169,7 +187,8 @@ int stf_fluid_create(const stf_fluid_def *def, stf_fluid **out, char *err, size_
     f->reorder_interval = 16;
     pressure_wall_table(f);
     if (def->model == STF_MODEL_CLAVET_STF && def->relaxation == STF_RELAX_GAUSS_SEIDEL &&
-        (def->effects & STF_EFFECT_SPRINGS) && !(f->gs = calloc(1, sizeof *f->gs))) {
+        (def->effects & (STF_EFFECT_SPRINGS | STF_EFFECT_PRESSURE)) &&
+        !(f->gs = calloc(1, sizeof *f->gs))) {
         free(f);
         FAIL("out of memory");
     }
@@ -544,6 +563,12 @@ int stf_fluid_step(stf_fluid *f, double dt)
     if (has(f, STF_EFFECT_PRESSURE)) {
         TIMED(STAGE_PRESSURE, pressure_relax(f, dt));
         if (fluid_check(f, "pressure")) return -1;
+        if (f->def.projection > 0) {
+            int rc = 0;
+            TIMED(STAGE_PRESSURE, rc = gs_project(f));
+            if (rc != 0) goto oom;
+            if (fluid_check(f, "pressure projection")) return -1;
+        }
     }
     TIMED(STAGE_COLLIDE, collide_all(f, dt));
 #pragma omp parallel for schedule(static)
@@ -665,23 +690,25 @@ int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
         }
     int w = snprintf(
         buf, len,
-        "effects: [%s]\nspacing: %.9g  # m\nh: %.9g  # m\ndensity: %.9g  # kg/m^3\n"
+        "effects: [%s]\nspacing: %.9g  # m\nmaterial_spacing: %.9g  # m (the material's; the "
+        "stiffnesses below are scaled to spacing)\nh: %.9g  # m\ndensity: %.9g  # kg/m^3\n"
         "particle_mass: %.9g  # kg\njitter: %.9g  # spacings\ngravity: [%.9g, %.9g, %.9g]  # m/s^2\n"
         "sigma: %.9g  # 1/s\nbeta: %.9g  # 1/m\nk: %.9g  # m/s^2\nk_near: %.9g  # m/s^2\n"
         "tension: %s\nrest_density: %.9g  # kernel sum\nrest_near_density: %.9g  # kernel sum\n"
         "k_min: %.9g  # 1/s^2\nyield_ratio: %.9g\nplasticity: %.9g  # 1/s\n"
         "relaxation: %s\niterations: %d\nq: %.9g\n"
-        "history_mode: %s\nhistory_steps: %d\nk_hist: %.9g  # 1/s^2 per m/s^q\n"
+        "history_mode: %s\nhistory_steps: %d  # at the first step (with memory: memory / dt)\n"
+        "memory: %.9g  # s (0: history_steps as given)\nk_hist: %.9g  # 1/s^2 per m/s^q\n"
         "reference_spacing: %.9g  # m\nk_onset: %.9g  # 1/s^2\n"
         "stick: %.9g  # 1/s\n",
-        effects, d->spacing, f->h, d->density, f->mass, d->jitter, d->gravity[0], d->gravity[1],
+        effects, d->spacing, d->material_spacing, f->h, d->density, f->mass, d->jitter, d->gravity[0], d->gravity[1],
         d->gravity[2], d->sigma, d->beta, d->k, d->k_near, d->tension ? "true" : "false",
         f->rest_density, f->rest_near, d->k_min, d->yield_ratio, d->plasticity,
         d->relaxation == STF_RELAX_GAUSS_SEIDEL ? "gauss_seidel" : "jacobi", d->iterations, d->q,
         d->history_mode == STF_HISTORY_FULL  ? "full"
         : d->history_mode == STF_HISTORY_SOE ? "soe"
                                              : "window",
-        stf_fluid_history_steps(f),
+        stf_fluid_history_steps(f), d->memory,
         d->k_hist, d->reference_spacing, d->k_onset, d->stick);
     if (d->history_mode == STF_HISTORY_SOE && w >= 0 && (size_t)w < len)
         w += snprintf(buf + w, len - (size_t)w, "history_terms: %d  # exponentials\n", d->terms);

@@ -170,6 +170,90 @@ static void relax_springs_of(stf_fluid *f, stf_gs *g, int i, double dt, double k
     }
 }
 
+/* Sweeps the colours: fn on every particle of each cell, the cells of a colour in parallel,
+ * then fn on every particle again with near = 0 for the pairs across non-neighbour cells. */
+static void sweep(stf_fluid *f, stf_gs *g, void (*fn)(stf_fluid *, stf_gs *, int, const void *, int),
+                  const void *arg)
+{
+    for (int col = 0; col < GS_COLOURS; col++) {
+        int c0 = g->colour_start[col], c1 = g->colour_start[col + 1];
+#pragma omp parallel for schedule(dynamic, 4)
+        for (int q = c0; q < c1; q++) {
+            int cell = g->colour_cells[q];
+            for (int32_t e = g->start[cell]; e < g->start[cell + 1]; e++)
+                fn(f, g, g->members[e], arg, 1);
+        }
+    }
+    for (int i = 0; i < f->n; i++) fn(f, g, i, arg, 0);
+}
+
+typedef struct spring_arg {
+    double dt, khist_scale;
+} spring_arg;
+
+static void spring_visit(stf_fluid *f, stf_gs *g, int i, const void *arg, int near)
+{
+    const spring_arg *a = arg;
+    relax_springs_of(f, g, i, a->dt, a->khist_scale, near);
+}
+
+/* The density constraint of particle i (gs_project): C = rho_i / rho0 - 1 with Clavet's
+ * kernel density rho_i = sum_j (1 - r/h)^2, only when compressed (C > 0: a free surface is
+ * not pulled). Position-based fluids' step for one constraint (Macklin and Mueller,
+ * "Position based fluids", SIGGRAPH 2013), Gauss-Seidel: lambda = -C / sum_k |grad_k C|^2,
+ * x_k += lambda grad_k C for i and its neighbours: the pair terms cancel (momentum exact). */
+static void project_visit(stf_fluid *f, stf_gs *g, int i, const void *arg, int near)
+{
+    (void)arg;
+    double *x = f->x, h = f->h, inv_h = 1.0 / h, rho0 = f->rest_density;
+    const int32_t *nb = grid_row(&f->grid, i);
+    int cnt = f->grid.count[i];
+    double rho = 0, gi[3] = {0, 0, 0}, g2 = 0;
+    double xi = x[3 * i], yi = x[3 * i + 1], zi = x[3 * i + 2];
+    if (near) /* the pairs of other cells' turns (near = 0) are few: the constraint is i's */
+        for (int k = 0; k < cnt; k++) {
+            int j = nb[k];
+            if (!near_cells(g, i, j)) return; /* a neighbour out of reach: the serial pass */
+        }
+    else {
+        int far = 0;
+        for (int k = 0; k < cnt && !far; k++) far = !near_cells(g, i, nb[k]);
+        if (!far) return; /* done in the coloured sweep */
+    }
+    for (int k = 0; k < cnt; k++) {
+        int j = nb[k];
+        double rx = x[3 * j] - xi, ry = x[3 * j + 1] - yi, rz = x[3 * j + 2] - zi;
+        double r = sqrt(rx * rx + ry * ry + rz * rz);
+        if (!(r < h) || r <= 1e-12 * h) continue;
+        double a = 1.0 - r * inv_h, gm = 2.0 * a * inv_h / (rho0 * r); /* |grad_j C| / r */
+        rho += a * a;
+        gi[0] += gm * rx, gi[1] += gm * ry, gi[2] += gm * rz;
+        g2 += gm * gm * r * r;
+    }
+    double C = rho / rho0 - 1.0;
+    if (!(C > 0)) return;
+    double denom = g2 + gi[0] * gi[0] + gi[1] * gi[1] + gi[2] * gi[2];
+    if (!(denom > 0)) return;
+    double lam = -C / denom;
+    for (int k = 0; k < cnt; k++) { /* grad_j C = -gm r_ij, grad_i C = sum gm r_ij */
+        int j = nb[k];
+        double rx = x[3 * j] - xi, ry = x[3 * j + 1] - yi, rz = x[3 * j + 2] - zi;
+        double r = sqrt(rx * rx + ry * ry + rz * rz);
+        if (!(r < h) || r <= 1e-12 * h) continue;
+        double a = 1.0 - r * inv_h, gm = 2.0 * a * inv_h / (rho0 * r);
+        x[3 * j] -= lam * gm * rx, x[3 * j + 1] -= lam * gm * ry, x[3 * j + 2] -= lam * gm * rz;
+    }
+    x[3 * i] += lam * gi[0], x[3 * i + 1] += lam * gi[1], x[3 * i + 2] += lam * gi[2];
+}
+
+int gs_project(stf_fluid *f)
+{
+    stf_gs *g = f->gs;
+    if (gs_bin(g, f->x, f->n, f->h * (1.0 + 1e-9)) != 0) return -1;
+    for (int it = 0; it < f->def.projection; it++) sweep(f, g, project_visit, NULL);
+    return 0;
+}
+
 int gs_springs(stf_fluid *f, double dt, double khist_scale)
 {
     stf_gs *g = f->gs;
@@ -192,17 +276,7 @@ int gs_springs(stf_fluid *f, double dt, double khist_scale)
     size_t slots = (size_t)s->n_alloc * (size_t)s->stride;
     if (grow((void **)&g->lambda, &g->cap_lambda, slots, sizeof *g->lambda)) return -1;
     memset(g->lambda, 0, slots * sizeof *g->lambda);
-    for (int it = 0; it < f->def.iterations; it++) {
-        for (int col = 0; col < GS_COLOURS; col++) {
-            int c0 = g->colour_start[col], c1 = g->colour_start[col + 1];
-#pragma omp parallel for schedule(dynamic, 4)
-            for (int q = c0; q < c1; q++) {
-                int cell = g->colour_cells[q];
-                for (int32_t e = g->start[cell]; e < g->start[cell + 1]; e++)
-                    relax_springs_of(f, g, g->members[e], dt, khist_scale, 1);
-            }
-        }
-        for (int i = 0; i < n; i++) relax_springs_of(f, g, i, dt, khist_scale, 0);
-    }
+    spring_arg arg = {dt, khist_scale};
+    for (int it = 0; it < f->def.iterations; it++) sweep(f, g, spring_visit, &arg);
     return 0;
 }

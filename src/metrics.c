@@ -353,6 +353,146 @@ static int bulk_first(double *x, int n, double spacing)
     return m;
 }
 
+/* The bodies' centres and radii at time t (the nearest sample of each series), for the
+ * density sample's exclusion zones. */
+typedef struct body_track {
+    int n;
+    double *t, *p, R;
+} body_track;
+
+/* The density of the bulk of a frame (metrics.h, density_error_max): particles in the
+ * container shrunk by Rc = 3 spacings, at least Rc under the median surface column and Rc
+ * clear of every body; for each, the particles within Rc (itself included). Returns the
+ * number of samples; their counts in cnt (n). */
+static int bulk_counts(const double *x, int n, const run_geometry *g, const body_track *bt,
+                       int nb, double t, double *cnt)
+{
+    double s = g->spacing, rc = 3 * s, rc2 = rc * rc;
+    enum { MAXCOLS = 1 << 20 };
+    double *col = malloc(MAXCOLS * sizeof *col);
+    if (!col || n <= 0 || !g->has_container) {
+        free(col);
+        return 0;
+    }
+    int mcol = column_heights(x, n, 2 * s, col, MAXCOLS);
+    double median = 0;
+    if (mcol > 0) {
+        qsort(col, (size_t)mcol, sizeof *col, cmp_double);
+        median = mcol % 2 ? col[mcol / 2] : 0.5 * (col[mcol / 2 - 1] + col[mcol / 2]);
+    }
+    free(col);
+    double c[STF_METRICS_MAX_BODIES][3];
+    for (int b = 0; b < nb; b++) {
+        int k = 0;
+        while (k + 1 < bt[b].n && bt[b].t[k + 1] <= t) k++;
+        for (int a = 0; a < 3; a++) c[b][a] = bt[b].n > 0 ? bt[b].p[3 * k + a] : NAN;
+    }
+    /* cells of Rc over the container box: the neighbours within Rc are in the 27 about */
+    double lo[3], span[3];
+    long dim[3];
+    for (int a = 0; a < 3; a++) {
+        lo[a] = g->lo[a] - s;
+        span[a] = (a < 2 ? g->hi[a] + s : fmax(g->hi[a], median) + s) - lo[a];
+        dim[a] = (long)(span[a] / rc) + 1;
+    }
+    long ncell = dim[0] * dim[1] * dim[2];
+    int *head = malloc((size_t)ncell * sizeof *head), *next = malloc((size_t)n * sizeof *next);
+    int m = 0;
+    if (!head || !next) goto out;
+    for (long k = 0; k < ncell; k++) head[k] = -1;
+    for (int i = 0; i < n; i++) {
+        long ci[3];
+        int in = 1;
+        for (int a = 0; a < 3; a++) {
+            double u = floor((x[3 * i + a] - lo[a]) / rc);
+            in &= u >= 0 && u < dim[a];
+            ci[a] = in ? (long)u : 0;
+        }
+        next[i] = -1;
+        if (!in) continue;
+        long k = (ci[2] * dim[1] + ci[1]) * dim[0] + ci[0];
+        next[i] = head[k];
+        head[k] = i;
+    }
+    for (int i = 0; i < n; i++) {
+        const double *p = x + 3 * i;
+        int ok = p[2] >= g->lo[2] + rc && p[2] <= median - rc;
+        for (int a = 0; a < 2; a++) ok &= p[a] >= g->lo[a] + rc && p[a] <= g->hi[a] - rc;
+        for (int b = 0; b < nb && ok; b++) {
+            double d2 = 0;
+            for (int a = 0; a < 3; a++) d2 += (p[a] - c[b][a]) * (p[a] - c[b][a]);
+            ok = !(d2 < (bt[b].R + rc) * (bt[b].R + rc)); /* NaN centre: no exclusion */
+        }
+        if (!ok) continue;
+        long ci[3];
+        for (int a = 0; a < 3; a++) ci[a] = (long)floor((p[a] - lo[a]) / rc);
+        double count = 0; /* smooth weights: a lattice and a liquid read alike */
+        for (long dz = -1; dz <= 1; dz++)
+            for (long dy = -1; dy <= 1; dy++)
+                for (long dx = -1; dx <= 1; dx++) {
+                    long X = ci[0] + dx, Y = ci[1] + dy, Z = ci[2] + dz;
+                    if (X < 0 || Y < 0 || Z < 0 || X >= dim[0] || Y >= dim[1] || Z >= dim[2]) continue;
+                    for (int j = head[(Z * dim[1] + Y) * dim[0] + X]; j >= 0; j = next[j]) {
+                        double d2 = 0;
+                        for (int a = 0; a < 3; a++) d2 += (x[3 * j + a] - p[a]) * (x[3 * j + a] - p[a]);
+                        double u = 1 - d2 / rc2;
+                        count += d2 < rc2 ? u * u : 0.0;
+                    }
+                }
+        cnt[m++] = count * s * s * s / (32.0 * 3.14159265358979323846 / 105.0 * rc * rc * rc); /* / its integral */
+    }
+out:
+    free(head);
+    free(next);
+    return m;
+}
+
+/* density_error_max / density_error_local over the frames (metrics.h). */
+static void density_errors(const stf_h5r *r, const run_geometry *g, stf_metrics *m)
+{
+    int nb = stf_h5r_body_count(r);
+    if (nb > STF_METRICS_MAX_BODIES) nb = STF_METRICS_MAX_BODIES;
+    body_track bt[STF_METRICS_MAX_BODIES];
+    for (int b = 0; b < nb; b++) {
+        char key[128];
+        const char *name = stf_h5r_body_name(r, b);
+        bt[b].t = bt[b].p = NULL;
+        bt[b].n = stf_h5r_body_series(r, name, &bt[b].t, &bt[b].p, NULL, NULL, NULL, NULL);
+        snprintf(key, sizeof key, "body.%s.half_height", name);
+        bt[b].R = attr_or(r, key, 0.0);
+    }
+    int nf = stf_h5r_frames(r);
+    m->density_error_max = m->density_error_local = m->density_error_first = NAN;
+    for (int f = 0; f < nf; f++) {
+        int n = stf_h5r_frame_count(r, f);
+        double *x = malloc((size_t)(n > 0 ? n : 1) * 3 * sizeof *x);
+        double *cnt = malloc((size_t)(n > 0 ? n : 1) * sizeof *cnt);
+        int k = x && cnt && stf_h5r_read_frame(r, f, x, NULL) == 0
+                    ? bulk_counts(x, n, g, bt, nb, stf_h5r_frame_time(r, f), cnt)
+                    : 0;
+        if (k > 0) {
+            double mean = 0;
+            for (int i = 0; i < k; i++) mean += cnt[i] / k;
+            if (f == 0) m->density_error_first = mean - 1;
+            else {
+                double e = mean - 1;
+                if (!(fabs(e) <= m->density_error_max)) m->density_error_max = fabs(e);
+                double *err = malloc((size_t)k * sizeof *err);
+                if (err) {
+                    for (int i = 0; i < k; i++) err[i] = fabs(cnt[i] - 1);
+                    qsort(err, (size_t)k, sizeof *err, cmp_double);
+                    double p95 = quantile_sorted(err, k, 0.95);
+                    if (!(p95 <= m->density_error_local)) m->density_error_local = p95;
+                    free(err);
+                }
+            }
+        }
+        free(x);
+        free(cnt);
+    }
+    for (int b = 0; b < nb; b++) free(bt[b].t), free(bt[b].p);
+}
+
 static int fluid_metrics(const stf_h5r *r, const run_geometry *g, stf_metrics *m)
 {
     int nf = stf_h5r_frames(r);
@@ -463,6 +603,7 @@ int stf_metrics_compute(const char *path, stf_metrics *m, char *err, size_t errl
         }
     free(first);
     int rc = fluid_metrics(r, &g, m); /* after time_end: solid_duration may need it */
+    density_errors(r, &g, m);
     stf_h5r_close(r);
     if (rc != 0) {
         snprintf(err, errlen, "%s: cannot read the particle frames", path);
@@ -551,6 +692,9 @@ char *stf_metrics_json(const stf_metrics *m)
     put_field(&b, "impact_time", m->impact_time);
     put_field(&b, "solid_duration", m->solid_duration);
     put_field(&b, "splash_height", m->splash_height);
+    put_field(&b, "density_error_max", m->density_error_max);
+    put_field(&b, "density_error_local", m->density_error_local);
+    put_field(&b, "density_error_first", m->density_error_first);
     put(&b, "}}\n");
     return b.s;
 }
@@ -580,7 +724,8 @@ static int body_field(const stf_body_metrics *b, const char *f, double *v)
 const char *const stf_fluid_metric_names[] = {
     "particles",     "escaped",           "max_speed",        "com_rebound_height",
     "finger_height", "surface_roughness", "final_com_height", "impact_time",
-    "solid_duration", "splash_height",    NULL};
+    "solid_duration", "splash_height",    "density_error_max", "density_error_local",
+    "density_error_first", NULL};
 
 int stf_metrics_get(const stf_metrics *m, const char *key, double *v)
 {
@@ -598,6 +743,9 @@ int stf_metrics_get(const stf_metrics *m, const char *key, double *v)
         else if (!strcmp(f, "impact_time")) *v = m->impact_time;
         else if (!strcmp(f, "solid_duration")) *v = m->solid_duration;
         else if (!strcmp(f, "splash_height")) *v = m->splash_height;
+        else if (!strcmp(f, "density_error_max")) *v = m->density_error_max;
+        else if (!strcmp(f, "density_error_local")) *v = m->density_error_local;
+        else if (!strcmp(f, "density_error_first")) *v = m->density_error_first;
         else return -1;
         return 0;
     }

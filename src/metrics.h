@@ -55,6 +55,19 @@
  *   distance of the particles from their centre of mass) first exceeds 1.5 times its value
  *   at t = 0: how long a dropped blob keeps its shape before it spreads as a liquid. If it
  *   never spreads that far, time_end - impact_time (a lower bound); NAN without an impact.
+ * - fluid.density_error_max: how far the pool's mean density strays from the material's:
+ *   in each frame, the bulk (particles in the container shrunk by Rc = 3 spacings, at least Rc
+ *   under the median surface column and Rc clear of every body's half height) is sampled at
+ *   each of its particles by the number density sum_j (1 - r_j^2/Rc^2)^2 over the particles
+ *   within Rc (itself included) divided by the weight's integral 32 pi Rc^3 / 105, times the
+ *   spacing^3: the density over the material's (the particle mass is density * spacing^3).
+ *   A smooth weight reads a lattice and a liquid at the same number density alike (a plain
+ *   count within Rc would read the initial lattice 9% dense); the model's own kernel density,
+ *   which a solver holds at rest, may hide a denser packing, this does not.
+ *   density_error_max: |mean - 1|, largest over the frames after the first;
+ *   density_error_local: the largest over those frames of the 95th percentile of |sample - 1|
+ *   (about 110 particles in Rc: a bound on local compression, not exact);
+ *   density_error_first: mean - 1 on the first frame (the estimator's error on the lattice).
  * - fluid.escaped: particles of the last frame outside the container's inner box (grown by
  *   one spacing; the open top is not a wall up to twice the container height). */
 #ifndef STF_METRICS_H
@@ -99,6 +112,10 @@ typedef struct stf_metrics {
     double impact_time;        /* s, NAN if never */
     double solid_duration;     /* s, NAN without an impact */
     double splash_height;      /* m */
+    double density_error_max;  /* 1, NAN without a container or a bulk to sample */
+    double density_error_local;/* 1, NAN likewise */
+    double density_error_first;/* 1: the same estimate on the first frame (the estimator's own
+                                  error on the initial lattice), NAN likewise */
 } stf_metrics;
 
 /* The metric names an expect block may use, NULL-terminated: a body's (after "NAME." or

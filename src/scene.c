@@ -23,6 +23,9 @@ enum { SCENE_BAD = 2 };
 
 typedef struct loader {
     const char *file; /* name used in messages */
+    char material_file[1024]; /* the material file merged into the scene ("" without) */
+    char *material_text;      /* its text and document, alive while the scene's nodes copied */
+    struct fy_document *material_fyd; /* from it refer to them */
     char *err;
     size_t errlen;
     struct fy_document *fyd;
@@ -64,19 +67,40 @@ static int node_mark(struct fy_node *n, int *line, int *col)
     return 0;
 }
 
+/* Node meta data: i + 1 for a node made by override i; MATERIAL_META for a node copied from
+ * the material file (merge_material). */
+#define MATERIAL_META (-1)
+
 /* The override (index) that created n or one of its ancestors, or -1. */
 static int node_override(struct fy_node *n)
 {
     for (; n; n = fy_node_get_document_parent(n)) {
         intptr_t m = (intptr_t)fy_node_get_meta(n);
         if (m > 0) return (int)(m - 1);
+        if (m == MATERIAL_META) return -1;
     }
     return -1;
+}
+
+/* 1 when n came from the material file (it or an ancestor was copied from there). */
+static int node_from_material(struct fy_node *n)
+{
+    for (; n; n = fy_node_get_document_parent(n)) {
+        intptr_t m = (intptr_t)fy_node_get_meta(n);
+        if (m > 0) return 0;
+        if (m == MATERIAL_META) return 1;
+    }
+    return 0;
 }
 
 static void mark_override(struct fy_node *n, int i)
 {
     fy_node_set_meta(n, (void *)(intptr_t)(i + 1));
+}
+
+static void mark_material(struct fy_node *n)
+{
+    fy_node_set_meta(n, (void *)(intptr_t)MATERIAL_META);
 }
 
 static int override_fail(loader *L, int i, const char *key, const char *what)
@@ -104,8 +128,10 @@ static int fail(loader *L, struct fy_node *at, struct fy_node *alt, const char *
     if (o < 0) o = node_override(alt);
     if (o >= 0) return override_fail(L, o, key, what);
     int line = 1, col = 1;
-    if (!node_mark(at, &line, &col)) node_mark(alt, &line, &col);
-    snprintf(L->err, L->errlen, "%s:%d:%d: %s: %s", L->file, line, col, key, what);
+    struct fy_node *where = at;
+    if (!node_mark(at, &line, &col)) node_mark(where = alt, &line, &col);
+    const char *file = node_from_material(where) ? L->material_file : L->file;
+    snprintf(L->err, L->errlen, "%s:%d:%d: %s: %s", file, line, col, key, what);
     return SCENE_BAD;
 }
 
@@ -453,7 +479,7 @@ static int parse_blocks(loader *L, const mapv *fluid)
 static int parse_fluid(loader *L, const mapv *top)
 {
     static const char *const keys[] = {"model", "spacing", "density", "h", "jitter", "blocks",
-                                       "relaxation", "iterations", NULL};
+                                       "relaxation", "iterations", "reference_spacing", NULL};
     static const char *const relaxations[] = {"jacobi", "gauss_seidel", NULL};
     static const char *const models[] = {"clavet_stf", "carreau_yasuda", NULL};
     stf_fluid_def *f = &L->s->fluid;
@@ -469,6 +495,11 @@ static int parse_fluid(loader *L, const mapv *top)
     if (f->spacing > 1) return fail_value(L, &m, "spacing", "must be > 0 and <= 1");
     if (get_num(L, &m, "density", R_POS, &f->density) < 0) return SCENE_BAD;
     if (get_num(L, &m, "h", R_NONNEG, &f->h) < 0) return SCENE_BAD;
+    if (get_num(L, &m, "reference_spacing", R_NONNEG, &f->material_spacing) < 0) return SCENE_BAD;
+    if (f->material_spacing > 1) return fail_value(L, &m, "reference_spacing", "must be <= 1 m");
+    if (f->material_spacing > 0 && f->h > 0)
+        return fail_value(L, &m, "h", "must be 0 (2 spacings) with a reference_spacing: the "
+                                      "material scales with h / spacing fixed");
     if (f->h > 0 && (f->h < f->spacing || f->h > 5 * f->spacing))
         return fail_value(L, &m, "h", "must be 0 (= 2*spacing) or in [spacing, 5*spacing]");
     if (get_num(L, &m, "jitter", R_NONNEG, &f->jitter) < 0) return SCENE_BAD;
@@ -573,6 +604,11 @@ static int parse_effect_params(loader *L, int e, const mapv *p)
         if (get_num(L, p, "k", R_POS, &f->k) < 0) return SCENE_BAD;
         if (get_num(L, p, "k_near", R_NONNEG, &f->k_near) < 0) return SCENE_BAD;
         if (get_bool(L, p, "tension", &f->tension) < 0) return SCENE_BAD;
+        {
+            long pr = f->projection;
+            if (get_int(L, p, "projection", 0, 64, &pr) < 0) return SCENE_BAD;
+            f->projection = (int)pr;
+        }
         return get_num(L, p, "rest_density", R_NONNEG, &f->rest_density) < 0 ? SCENE_BAD : 0;
     case 3:
         if (get_num(L, p, "k_min", R_NONNEG, &f->k_min) < 0) return SCENE_BAD;
@@ -589,7 +625,7 @@ static int parse_effect_params(loader *L, int e, const mapv *p)
 
 static const char *const gravity_keys[] = {"g", NULL};
 static const char *const viscosity_keys[] = {"sigma", "beta", NULL};
-static const char *const pressure_keys[] = {"k", "k_near", "rest_density", "tension", NULL};
+static const char *const pressure_keys[] = {"k", "k_near", "rest_density", "tension", "projection", NULL};
 static const char *const springs_keys[] = {"k_min", "yield_ratio", "plasticity", NULL};
 static const char *const history_keys[] = {"q", "d", "memory", "k_hist", "mode", "reference_spacing", "terms", "k_onset", NULL};
 static const char *const stick_keys[] = {"stick", NULL};
@@ -1073,7 +1109,7 @@ static int parse_scene(loader *L)
 {
     static const char *const keys[] = {
         "name",      "duration", "dt",     "frame_rate", "bounce_min_rise", "fluid", "effects",
-        "container", "dt_control", "bodies", "expect", NULL};
+        "container", "dt_control", "bodies", "expect", "material", NULL};
     static const char *const dt_controls[] = {"adaptive", "fixed", NULL};
     stf_scene *s = L->s;
     mapv top;
@@ -1392,11 +1428,129 @@ static struct fy_document *parse_text(loader *L, const char *text)
     return fyd;
 }
 
+/* Copies every key of the mapping `from` (material document) that `into` (scene document)
+ * lacks, marking the copies as the material's. */
+static int fill_missing(loader *L, struct fy_node *into, struct fy_node *from)
+{
+    void *it = NULL;
+    struct fy_node_pair *p;
+    while ((p = fy_node_mapping_iterate(from, &it))) {
+        char name[128];
+        if (!scalar_text(fy_node_pair_key(p), name, sizeof name))
+            return fail(L, fy_node_pair_key(p), NULL, "material", "expected a plain key");
+        if (fy_node_mapping_lookup_pair_by_string(into, name, FY_NT)) continue; /* the scene's */
+        /* one of two ways to give the same thing: the scene's way wins */
+        static const char *const alike[][2] = {{"d", "memory"}, {"memory", "d"}};
+        int taken = 0;
+        for (int a = 0; a < 2; a++)
+            taken |= !strcmp(name, alike[a][0]) &&
+                     fy_node_mapping_lookup_pair_by_string(into, alike[a][1], FY_NT) != NULL;
+        if (taken) continue;
+        struct fy_node *k = fy_node_copy(L->fyd, fy_node_pair_key(p));
+        struct fy_node *v = fy_node_copy(L->fyd, fy_node_pair_value(p));
+        if (!k || !v || fy_node_mapping_append(into, k, v) != 0) {
+            snprintf(L->err, L->errlen, "%s: out of memory", L->file);
+            return SCENE_BAD;
+        }
+        mark_material(k);
+        mark_material(v);
+    }
+    return 0;
+}
+
+/* The material's file: NAME alone is materials/NAME.yaml beside the scene file; a name
+ * with a '/' or ending in .yaml is a path relative to the scene file's directory. */
+static void material_path(const loader *L, const char *name, char *out, size_t n)
+{
+    const char *slash = strrchr(L->file, '/');
+    int dir = slash ? (int)(slash - L->file + 1) : 0;
+    size_t len = strlen(name);
+    int is_path = strchr(name, '/') || (len > 5 && !strcmp(name + len - 5, ".yaml"));
+    if (name[0] == '/') snprintf(out, n, "%s", name);
+    else if (is_path) snprintf(out, n, "%.*s%s", dir, L->file, name);
+    else snprintf(out, n, "%.*smaterials/%s.yaml", dir, L->file, name);
+}
+
+static char *read_file(const char *path);
+
+/* The scene's `material: NAME`: the material file's fluid keys fill the scene's fluid
+ * mapping, and its parameters of each effect the scene names fill that effect's mapping
+ * (an effect the scene does not name stays off); the scene's own keys win. The key is then
+ * removed, so the scene text stored in an output file holds the whole material. */
+static int merge_material(loader *L)
+{
+    struct fy_node *root = fy_document_root(L->fyd);
+    if (!root || !fy_node_is_mapping(root)) return 0;
+    struct fy_node_pair *mp = fy_node_mapping_lookup_pair_by_string(root, "material", FY_NT);
+    if (!mp) return 0;
+    char name[512];
+    struct fy_node *mk = fy_node_pair_key(mp), *mv = fy_node_pair_value(mp);
+    if (!scalar_text(mv, name, sizeof name) || !name[0] || fy_node_is_null(mv))
+        return fail(L, mv, mk, "material", "expected a material name (e.g. cornstarch) or a path");
+    material_path(L, name, L->material_file, sizeof L->material_file);
+    char *text = read_file(L->material_file);
+    if (!text)
+        return fail(L, mv, mk, "material", "cannot read %s: %s", L->material_file, strerror(errno));
+    const char *scene_file = L->file;
+    L->file = L->material_file; /* syntax errors name the material file */
+    struct fy_document *mat = parse_text(L, text);
+    L->file = scene_file;
+    L->material_text = text;
+    L->material_fyd = mat;
+    if (!mat) return SCENE_BAD;
+    static const char *const top_keys[] = {"name", "fluid", "effects", NULL};
+    static const char *const fluid_keys[] = {"model", "density", "h", "jitter", "relaxation",
+                                             "iterations", "reference_spacing", NULL};
+    int rc = 0;
+    mapv top, fl, ef;
+    const char *saved = L->file;
+    L->file = L->material_file; /* keys of the material document name its file */
+    rc = open_map(L, fy_document_root(mat), NULL, "", top_keys, &top);
+    struct fy_node *k, *v;
+    if (!rc && (v = lookup(&top, "fluid", &k)))
+        rc = open_map(L, v, k, "fluid", fluid_keys, &fl);
+    L->file = saved;
+    if (!rc && fl.node) {
+        struct fy_node *sf = fy_node_mapping_lookup_by_string(root, "fluid", FY_NT);
+        if (sf && fy_node_is_mapping(sf)) rc = fill_missing(L, sf, fl.node);
+    }
+    if (!rc && (v = lookup(&top, "effects", &k)) && !is_null(v)) {
+        L->file = L->material_file;
+        if (!fy_node_is_mapping(v)) rc = fail(L, v, k, "effects", "expected a mapping");
+        L->file = saved;
+        ef.node = rc ? NULL : v;
+        struct fy_node *se = fy_node_mapping_lookup_by_string(root, "effects", FY_NT);
+        void *it = NULL;
+        struct fy_node_pair *p;
+        while (!rc && ef.node && se && fy_node_is_mapping(se) && (p = fy_node_mapping_iterate(se, &it))) {
+            char en[64];
+            if (!scalar_text(fy_node_pair_key(p), en, sizeof en)) continue;
+            struct fy_node *me = fy_node_mapping_lookup_by_string(ef.node, en, FY_NT);
+            if (!me || !fy_node_is_mapping(me)) continue;
+            struct fy_node *val = fy_node_pair_value(p);
+            if (is_null(val)) { /* `history:` or `history: {}` with nothing of its own */
+                val = fy_node_create_mapping(L->fyd);
+                if (!val || fy_node_pair_set_value(p, val) != 0) {
+                    rc = SCENE_BAD;
+                    break;
+                }
+            }
+            if (fy_node_is_mapping(val)) rc = fill_missing(L, val, me);
+        }
+    }
+    if (!rc) { /* the stored text holds the material itself */
+        struct fy_node *gone = fy_node_mapping_remove_by_key(root, fy_node_copy(L->fyd, mk));
+        if (gone) fy_node_free(gone);
+    }
+    return rc;
+}
+
 static int load(loader *L, const char *text)
 {
     stf_scene *s = L->s;
     L->fyd = parse_text(L, text);
     if (!L->fyd) return SCENE_BAD;
+    if (merge_material(L)) return SCENE_BAD;
     for (int i = 0; i < L->nov; i++) {
         if (apply_override(L, i)) return SCENE_BAD;
     }
@@ -1426,6 +1580,8 @@ int stf_scene_load_string(const char *name, const char *text, const stf_override
     snprintf(s->path, sizeof s->path, "%s", L.file);
     int rc = load(&L, text ? text : "");
     if (L.fyd) fy_document_destroy(L.fyd);
+    if (L.material_fyd) fy_document_destroy(L.material_fyd);
+    free(L.material_text);
     if (rc) {
         stf_scene_free(s);
         return rc;

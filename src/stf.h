@@ -127,6 +127,16 @@ typedef struct stf_fluid_def {
     double jitter;         /* random offset of block particles from the lattice, in spacings,
                               [0, 0.45]: breaks the crystal a cubic lattice would be */
     double h;              /* interaction radius, m; 0 means 2*spacing */
+    double material_spacing; /* m (>= 0; scene key fluid.reference_spacing): if > 0, the
+                              parameters below describe the material at this spacing, and a
+                              fluid at another spacing s takes the same continuum material
+                              (h/s fixed): with r = material_spacing / s, the spring stiffnesses
+                              k_min and k_onset scale by r^2 (modulus = rho k s^2 times a
+                              lattice sum), k_hist by r^3 (and neighbours' relative velocities
+                              for a flow scale by 1/r), the pressure stiffnesses k and k_near by
+                              r (bulk modulus = rho k s times a lattice sum), sigma by r^2
+                              (kinematic viscosity = sigma s^2 times a lattice sum) and beta by
+                              r; rates (plasticity, stick) and ratios stay. 0: as given */
     double gravity[3];     /* gravity acceleration, m/s^2 */
     /* viscosity (Clavet Alg. 5): velocity impulse dt*(1-r/h)*(sigma*u + beta*u^2) per pair,
        u the inward radial relative speed (m/s) */
@@ -135,6 +145,10 @@ typedef struct stf_fluid_def {
     /* double density relaxation (Clavet Alg. 2) */
     double k;              /* pressure stiffness, m/s^2 (> 0) */
     double k_near;         /* near-pressure stiffness, m/s^2 (>= 0) */
+    int projection;        /* sweeps of the density projection (ours, gauss_seidel.c: a
+                              particle compressed beyond the rest density is pushed back to
+                              it, position-based-fluids style), 0..64; 0: off (Clavet's
+                              pressure alone). Needs relaxation gauss_seidel */
     double rest_density;   /* rest kernel density (sum of (1-r/h)^2), dimensionless;
                               0 means the value of the initial cubic lattice */
     int tension;           /* 1: Clavet's pressure as written, negative below rest density
