@@ -158,6 +158,23 @@ static void test_unsplit_fails(void)
           stf_ode_failure(s->coupler));
     stf_sim_destroy(s);
     stf_scene_free(sc);
+    /* With max_substeps 4 the first step asks for 8 (the pressure: (1/60) sqrt(5e4 / 0.25) = 7.5) and
+       takes 4, counted as capped, not hidden. */
+    s = load_sim("embed_pool.yaml", pool_scene, &sc);
+    if (!s) return;
+    sd = stf_ode_default_step_def();
+    sd.max_substeps = 4;
+    CHECK(stf_ode_set_step(s->coupler, &sd, err, sizeof err) == 0, "%s", err);
+    int want = stf_ode_substeps(s->coupler, 1.0 / 60);
+    stf_ode_step(s->coupler, 1.0 / 60);
+    stf_ode_stats st;
+    stf_ode_get_stats(s->coupler, &st);
+    printf("max_substeps 4: %d substeps planned, %ld taken, %ld capped\n", want, st.substeps,
+           st.capped);
+    CHECK(want == 4 && st.substeps == 4 && st.capped == 1, "planned %d, took %ld, capped %ld", want,
+          st.substeps, st.capped);
+    stf_sim_destroy(s);
+    stf_scene_free(sc);
 }
 
 /* ------------------------------------------------------------ the app's own contacts */
