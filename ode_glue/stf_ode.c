@@ -504,7 +504,8 @@ int stf_ode_substep(stf_ode *c, double dt)
              c->step.stepper == STF_ODE_QUICK_STEP ? "dWorldQuickStep" : "dWorldStep", dt);
         return -1;
     }
-    for (int q = 0; q < 3 * c->n; q++) c->imp[q] += c->force[q] * dt, c->aimp[q] += c->torque[q] * dt;
+    for (int q = 0; q < 3 * c->n; q++)
+        c->imp[q] += c->force[q] * dt, c->aimp[q] += c->torque[q] * dt;
     c->stats.substeps++;
     if (c->stats.dt_min == 0 || dt < c->stats.dt_min) c->stats.dt_min = dt;
     if (dt > c->stats.dt_max) c->stats.dt_max = dt;

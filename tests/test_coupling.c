@@ -84,7 +84,8 @@ static void momentum_case(double dt, int steps)
     CHECK(err3 < 1e-12 * scale, "total momentum changed by %g N s", err3);
     /* steps longer than the limits allow are split: the ball alone moves 2 m/s * dt, more
        than half its 2 cm radius in 1/60 s */
-    if (dt > 0.01) CHECK(st.substeps > steps, "%ld substeps for %d steps of %g s", st.substeps, steps, dt);
+    if (dt > 0.01)
+        CHECK(st.substeps > steps, "%ld substeps for %d steps of %g s", st.substeps, steps, dt);
     stf_ode_destroy(c);
     stf_fluid_destroy(f);
     dSpaceDestroy(s);

@@ -261,8 +261,8 @@ static double box_on_floor(int make_contacts, int stepper, app *out, stf_ode_sta
         CHECK(dWorldGetQuickStepNumIterations(a.world) == 30, "quick step iterations %d",
               dWorldGetQuickStepNumIterations(a.world));
     const dReal *e = dBodyGetPosition(box);
-    double drift = sqrt((e[0] - start[0]) * (e[0] - start[0]) + (e[1] - start[1]) * (e[1] - start[1]) +
-                        (e[2] - start[2]) * (e[2] - start[2]));
+    double dx[3] = {e[0] - start[0], e[1] - start[1], e[2] - start[2]};
+    double drift = sqrt(dx[0] * dx[0] + dx[1] * dx[1] + dx[2] * dx[2]);
     *z = e[2];
     stf_ode_get_stats(c, st);
     *out = a;
@@ -287,15 +287,18 @@ static void test_collision_hook(void)
         double z, drift = box_on_floor(1, q ? STF_ODE_QUICK_STEP : STF_ODE_WORLD_STEP, &a, &st, &z);
         printf("collision hook, %s: %ld calls for %ld substeps of %ld steps (%.3g to %.3g ms); "
                "box drift %.3g mm from 0.3 to 1 s, at z = %.5f m (resting height %.3f)\n", name[q],
-               a.calls, st.substeps, st.steps, 1e3 * st.dt_min, 1e3 * st.dt_max, 1e3 * drift, z, hz);
+               a.calls, st.substeps, st.steps, 1e3 * st.dt_min, 1e3 * st.dt_max, 1e3 * drift, z,
+               hz);
         CHECK(a.calls == st.substeps && st.collide_calls == st.substeps,
-              "%ld hook calls (%ld counted) for %ld substeps", a.calls, st.collide_calls, st.substeps);
+              "%ld hook calls (%ld counted) for %ld substeps", a.calls, st.collide_calls,
+              st.substeps);
         CHECK(st.steps == 60 && st.substeps > st.steps, "%ld substeps of %ld steps", st.substeps,
               st.steps);
         /* Tolerance: a quarter of a spacing. The fluid's lattice noise pushes on the box's
            faces; a box that slid or sank would go centimetres (free fall: 4.9 m in 1 s). */
         CHECK(drift < 0.25 * spacing, "%s: the box moved %g m", name[q], drift);
-        CHECK(fabs(z - hz) < 0.25 * spacing, "%s: the box is at z = %g m, not on the floor", name[q], z);
+        CHECK(fabs(z - hz) < 0.25 * spacing, "%s: the box is at z = %g m, not on the floor",
+              name[q], z);
     }
     app a;
     stf_ode_stats st;

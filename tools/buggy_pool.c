@@ -246,7 +246,8 @@ static int check(const record *r)
 {
     int ok = 1;
     const double inner = POOLX - 0.5 * pool_size[0];
-    if (r->force_dry != 0) printf("check: a fluid force of %g N on the dry car\n", r->force_dry), ok = 0;
+    if (r->force_dry != 0)
+        printf("check: a fluid force of %g N on the dry car\n", r->force_dry), ok = 0;
     if (!(r->x_max > inner + RADIUS))
         printf("check: the front wheel got to x = %.3f m, not into the pool (inner face %.3f m)\n",
                r->x_max, inner), ok = 0;
@@ -254,11 +255,14 @@ static int check(const record *r)
         printf("check: entering, the fluid's impulse on the car is %g N s along its motion\n",
                r->impulse_entry[0]), ok = 0;
     if (!(r->impulse_wet[2] > 0))
-        printf("check: the fluid's impulse on the car in the pool is %g N s up\n", r->impulse_wet[2]), ok = 0;
+        printf("check: the fluid's impulse on the car in the pool is %g N s up\n",
+               r->impulse_wet[2]), ok = 0;
     if (!(r->substeps_max > 1))
-        printf("check: no step of 1/%d s was split (%d substeps at most)\n", HZ, r->substeps_max), ok = 0;
+        printf("check: no step of 1/%d s was split (%d substeps at most)\n", HZ,
+               r->substeps_max), ok = 0;
     if (collisions != r->substeps)
-        printf("check: %ld collision hook calls for %ld substeps\n", collisions, r->substeps), ok = 0;
+        printf("check: %ld collision hook calls for %ld substeps\n", collisions, r->substeps),
+            ok = 0;
     return ok;
 }
 

@@ -18,7 +18,8 @@ int main()
     stf_fluid_def def = stf_default_fluid_def();
     def.spacing = 0.02;
     stf_fluid *fluid = nullptr;
-    if (stf_fluid_create(&def, &fluid, err, sizeof err) != 0) return std::fprintf(stderr, "%s\n", err), 1;
+    if (stf_fluid_create(&def, &fluid, err, sizeof err) != 0)
+        return std::fprintf(stderr, "%s\n", err), 1;
     const double lo[3] = {-0.05, -0.05, 0}, hi[3] = {0.05, 0.05, 0.04}, v0[3] = {0, 0, 0};
     stf_fluid_add_block(fluid, lo, hi, v0);
     stf_ode *c = stf_ode_create(world, space, fluid);
@@ -36,8 +37,8 @@ int main()
     if (stf_ode_step(c, 1.0 / 60) != 0) std::fprintf(stderr, "%s\n", stf_ode_failure(c)), rc = 1;
     stf_ode_stats st;
     stf_ode_get_stats(c, &st);
-    std::printf("embed_cxx: %d particles, one step of 1/60 s in %d substeps\n", stf_fluid_count(fluid),
-                st.last_substeps);
+    std::printf("embed_cxx: %d particles, one step of 1/60 s in %d substeps\n",
+                stf_fluid_count(fluid), st.last_substeps);
     stf_ode_destroy(c);
     stf_fluid_destroy(fluid);
     dSpaceDestroy(space);
