@@ -158,8 +158,8 @@ static void test_unsplit_fails(void)
           stf_ode_failure(s->coupler));
     stf_sim_destroy(s);
     stf_scene_free(sc);
-    /* With max_substeps 4 the first step asks for 8 (the pressure: (1/60) sqrt(5e4 / 0.25) = 7.5) and
-       takes 4, counted as capped, not hidden. */
+    /* With max_substeps 4 the first step asks for 8 (the pressure: (1/60) sqrt(5e4 / 0.25)
+       = 7.5) and takes 4, counted as capped, not hidden. */
     s = load_sim("embed_pool.yaml", pool_scene, &sc);
     if (!s) return;
     sd = stf_ode_default_step_def();
