@@ -1,6 +1,8 @@
 /* stf_sim.c - builds an ODE world, the fluid and their coupling from a scene. */
 #include "stf_sim.h"
 
+#include "stf_ode_internal.h"
+
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -77,7 +79,7 @@ static int make_body(stf_sim *s, int k, char *err, size_t errlen)
     }
     dBodySetAutoDisableFlag(body, 0);
     s->bodies[k] = body;
-    stf_ode_attach_def ad = {b->shape.friction, b->shape.stick};
+    stf_ode_attach_def ad = {.friction = b->shape.friction, .stick = b->shape.stick};
     if (stf_ode_attach_body(s->coupler, body, &ad, err, errlen) != 0) return 2;
     return 0;
 }
@@ -143,7 +145,7 @@ static int make_container(stf_sim *s, char *err, size_t errlen)
     }
     s->container = body;
     memcpy(s->container_base, p, sizeof s->container_base);
-    stf_ode_attach_def ad = {c->friction, c->stick};
+    stf_ode_attach_def ad = {.friction = c->friction, .stick = c->stick};
     double origin[3] = {-com[0], -com[1], -com[2]};
     if (stf_ode_attach_container(s->coupler, body, body ? origin : p, fluid_size, w, &ad, err,
                                  errlen) != 0)
@@ -172,6 +174,14 @@ static int make_fluid(stf_sim *s, char *err, size_t errlen)
     return 0;
 }
 
+/* The peak speed (m/s) of a vibration: vibrate() sets a kinematic body's velocity at the
+ * start of each substep, after the split is chosen (stf_ode_set_peak_speed). */
+static double vibration_peak(const stf_vibration *v)
+{
+    if (!(v->amplitude > 0)) return 0;
+    return 2.0 * 3.14159265358979323846 * v->frequency * (1.0 + v->jitter) * v->amplitude;
+}
+
 int stf_sim_create(const stf_scene *scene, stf_sim **out, char *err, size_t errlen)
 {
     ode_init_once();
@@ -184,17 +194,11 @@ int stf_sim_create(const stf_scene *scene, stf_sim **out, char *err, size_t errl
     s->phase = calloc((size_t)nb + 1, sizeof *s->phase);
     s->freq = calloc((size_t)nb + 1, sizeof *s->freq);
     s->rng = calloc((size_t)nb + 1, sizeof *s->rng);
-    s->inradius = calloc((size_t)nb + 1, sizeof *s->inradius);
-    s->bound = calloc((size_t)nb + 1, sizeof *s->bound);
     s->fluid_impulse = calloc(3 * (size_t)nb + 1, sizeof *s->fluid_impulse);
-    if (!s->bodies || !s->phase || !s->freq || !s->rng || !s->inradius || !s->bound ||
-        !s->fluid_impulse) {
+    if (!s->bodies || !s->phase || !s->freq || !s->rng || !s->fluid_impulse) {
         stf_sim_destroy(s);
         return snprintf(err, errlen, "out of memory"), 2;
     }
-    for (int k = 0; k < nb; k++)
-        if (stf_collider_extent(&scene->bodies[k].shape, &s->inradius[k], &s->bound[k]) != 0)
-            s->inradius[k] = s->bound[k] = 0; /* not a bounded shape: make_body says why */
     s->world = dWorldCreate();
     s->space = dHashSpaceCreate(0);
     int rc = make_fluid(s, err, errlen);
@@ -203,6 +207,17 @@ int stf_sim_create(const stf_scene *scene, stf_sim **out, char *err, size_t errl
     if (scene->fluid.effects & STF_EFFECT_GRAVITY) dWorldSetGravity(s->world, g[0], g[1], g[2]);
     else dWorldSetGravity(s->world, 0, 0, 0);
     s->coupler = stf_ode_create(s->world, s->space, s->fluid);
+    if (!s->coupler) {
+        snprintf(err, errlen, "out of memory");
+        rc = 2;
+        goto fail;
+    }
+    stf_ode_step_def sd = stf_ode_default_step_def();
+    sd.adaptive = !scene->dt_fixed;
+    if (stf_ode_set_step(s->coupler, &sd, err, errlen) != 0) {
+        rc = 2;
+        goto fail;
+    }
     if (scene->container.present && (rc = make_container(s, err, errlen))) goto fail;
     for (int k = 0; k < nb; k++)
         if ((rc = make_body(s, k, err, errlen))) goto fail;
@@ -211,6 +226,12 @@ int stf_sim_create(const stf_scene *scene, stf_sim **out, char *err, size_t errl
         s->freq[k] = v->frequency;
         s->rng[k] = v->seed * 2654435761u + 1u;
     }
+    for (int k = 0; k < nb; k++)
+        if (scene->bodies[k].motion == STF_MOTION_KINEMATIC)
+            stf_ode_set_peak_speed(s->coupler, s->bodies[k],
+                                   vibration_peak(&scene->bodies[k].vibration));
+    if (s->container && scene->container.motion == STF_MOTION_KINEMATIC)
+        stf_ode_set_peak_speed(s->coupler, s->container, vibration_peak(&scene->container.vibration));
     s->removed = stf_ode_remove_overlaps(s->coupler);
     s->ngeoms = dSpaceGetNumGeoms(s->space);
     s->geoms = calloc((size_t)s->ngeoms + 1, sizeof *s->geoms);
@@ -238,8 +259,6 @@ void stf_sim_destroy(stf_sim *s)
     free(s->phase);
     free(s->freq);
     free(s->rng);
-    free(s->inradius);
-    free(s->bound);
     free(s->fluid_impulse);
     free(s->geoms);
     free(s);
@@ -269,93 +288,11 @@ static void vibrate(stf_sim *s, dBodyID body, int k, const stf_vibration *v, con
     dBodySetLinearVel(body, u * v->axis[0], u * v->axis[1], u * v->axis[2]);
 }
 
-/* Adaptive step control. A step of the scene's dt is split into m equal substeps when the
- * state asks for it; m = 1 (the scene's dt, bit for bit the fixed-step run) otherwise.
- *   CFL:       the fastest particle moves at most CFL_H interaction radii per substep;
- *   stiffness: dt_sub^2 k_eff <= STIFF_MAX, where k_eff (1/s^2) is the larger of the
- *              pressure's k/h and the spring network's, sum_j k_ij (1 - L/h) of the
- *              stiffest particle in the last substep (history stiffness included, which
- *              grows with the strain rate).
- * The bounds are measured: the stability test scene runs at dt = 2 ms (k/h dt^2 = 0.2) and
- * blows up at 3 ms (0.45); the bowling scenes never trigger it. The history buffer stays
- * indexed in substeps: while a step is split, its window of d substeps covers d dt/m
- * seconds, and Eq. 3's weights treat the substeps as equal steps (they are, within a step).
- * Keeping the window in seconds would need weights for unequal steps; the split is rare
- * (impacts, violent vibration) and short, so we accept the shorter memory meanwhile.
- *   bodies:    a dynamic body moves at most BODY_TRAVEL of its inradius per substep. ODE's
- *              contacts are discrete: a body whose centre passes a wall's mid-plane within
- *              one step is pushed out on the far side (measured: a 2.5 cm lead ball at 60 m/s
- *              went through a 2 mm wall at dt = 1 ms; at 40 m/s it did not).
- *   thin solids: a particle moves at most half a spacing plus T relative to each solid per
- *              substep, T the distance from a solid's surface to the point past which it is
- *              pushed out on the far side: a body's inradius, half the container's wall when
- *              the wall is solid from both sides (stf_wall_two_sided), the whole wall when it
- *              is not (beyond it: outside, free). The collisions leave particles half a
- *              spacing from a solid.
- *              Only thin solids trigger it: with h = 2 spacings, T < spacing / 2 (the CFL
- *              bound is stricter otherwise). The speed is the fastest particle's plus the
- *              solid's. */
-enum { MAX_SPLIT = 64 };
-static const double CFL_H = 0.5, STIFF_MAX = 0.25, BODY_TRAVEL = 0.5;
-
-/* The largest speed (m/s) of a solid's material: body velocity, rotation about its centre
- * at radius r, and the vibration's peak speed (vibrate() sets a kinematic body's velocity
- * at the start of each substep, after the split is chosen). */
-static double solid_speed(dBodyID b, double r, const stf_vibration *v)
-{
-    if (!b) return 0;
-    const dReal *u = dBodyGetLinearVel(b), *w = dBodyGetAngularVel(b);
-    double sp = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]) +
-                sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) * r;
-    if (dBodyIsKinematic(b) && v->amplitude > 0) {
-        double peak = 2.0 * 3.14159265358979323846 * v->frequency * (1.0 + v->jitter) *
-                      v->amplitude;
-        if (peak > sp) sp = peak;
-    }
-    return sp;
-}
-
-static int substeps_for(const stf_sim *s, double dt)
-{
-    const stf_scene *sc = s->scene;
-    if (sc->dt_fixed) return 1;
-    double h = sc->fluid.h > 0 ? sc->fluid.h : 2.0 * sc->fluid.spacing;
-    double k_eff = (sc->fluid.effects & STF_EFFECT_PRESSURE) ? sc->fluid.k / h : 0.0;
-    double last = stf_fluid_last_dt(s->fluid);
-    if (last > 0) {
-        double ks = stf_fluid_spring_gain(s->fluid) / (last * last);
-        if (ks > k_eff) k_eff = ks;
-    }
-    double need = sqrt(dt * dt * k_eff / STIFF_MAX);
-    double vf = stf_fluid_max_speed(s->fluid), rp = 0.5 * sc->fluid.spacing;
-    double cfl = vf * dt / (CFL_H * h);
-    if (cfl > need) need = cfl;
-    if (sc->container.present) {
-        const stf_container_def *c = &sc->container;
-        const double *z = c->size;
-        double r = sqrt(z[0] * z[0] + z[1] * z[1] + z[2] * z[2]);
-        double thin = (vf + solid_speed(s->container, r, &c->vibration)) * dt /
-                      (rp + (stf_wall_two_sided(c->wall, sc->fluid.spacing) ? 0.5 : 1.0) * c->wall);
-        if (thin > need) need = thin;
-    }
-    for (int k = 0; k < sc->nbodies; k++) {
-        double r = s->inradius[k];
-        double thin = (vf + solid_speed(s->bodies[k], s->bound[k], &sc->bodies[k].vibration)) *
-                      dt / (rp + r);
-        if (thin > need) need = thin;
-        if (sc->bodies[k].motion != STF_MOTION_DYNAMIC || !(r > 0)) continue;
-        const dReal *v = dBodyGetLinearVel(s->bodies[k]);
-        double travel = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) * dt / (BODY_TRAVEL * r);
-        if (travel > need) need = travel;
-    }
-    if (!(need > 1.0)) return 1;
-    return need >= MAX_SPLIT ? MAX_SPLIT : (int)ceil(need);
-}
-
 int stf_sim_step(stf_sim *s)
 {
     const stf_scene *sc = s->scene;
-    int m = substeps_for(s, sc->dt);
+    /* the coupler's split, the same as stf_ode_step's (adaptive off for dt_control: fixed) */
+    int m = stf_ode_substeps(s->coupler, sc->dt);
     double dt = m == 1 ? sc->dt : sc->dt / m;
     stf_solver_stats *acc = &s->step_stats;
     memset(acc, 0, sizeof *acc);
@@ -368,10 +305,10 @@ int stf_sim_step(stf_sim *s)
         if (sc->container.present && sc->container.motion == STF_MOTION_KINEMATIC)
             vibrate(s, s->container, sc->nbodies, &sc->container.vibration, s->container_base, t,
                     dt);
-        if (stf_ode_step(s->coupler, dt) != 0) return -1;
+        if (stf_ode_substep(s->coupler, dt) != 0) return -1;
         for (int k = 0; k < sc->nbodies; k++) {
             double f[3], torque[3];
-            stf_ode_body_fluid_force(s->coupler, s->bodies[k], f, torque);
+            stf_ode_substep_force(s->coupler, s->bodies[k], f, torque);
             for (int a = 0; a < 3; a++) s->fluid_impulse[3 * k + a] += f[a] * dt;
         }
         /* The Carreau-Yasuda solver splits the coupled step again by its own CFL: count the

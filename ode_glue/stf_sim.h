@@ -19,9 +19,6 @@ typedef struct stf_sim {
     double *phase;          /* vibration phase per body (+1 for the container), rad */
     double *freq;           /* current vibration frequency, Hz */
     unsigned *rng;
-    double *inradius;       /* per body: radius of the largest sphere inside it about its
-                               centre, and of the smallest holding it (m; stf_collider_extent) */
-    double *bound;
     double *fluid_impulse;  /* per body, 3 each: the fluid's impulse over the last step (N s) */
     int removed;            /* particles removed at set-up because they overlapped bodies */
     long steps;             /* steps of the scene's dt taken */
@@ -43,8 +40,8 @@ typedef struct stf_sim {
 int stf_sim_create(const stf_scene *scene, stf_sim **out, char *err, size_t errlen);
 void stf_sim_destroy(stf_sim *s);
 /* One step of the scene's dt: one substep, or (adaptive control, the default) m >= 1 equal
- * substeps of dt/m chosen from the velocity (CFL) and the effective stiffness, see
- * stf_sim.c. Returns 0, or -1 on a numerical failure. */
+ * substeps of dt/m chosen from the velocity (CFL), the effective stiffness and the thin
+ * solids: the split of stf_ode_step (stf_ode_substeps, stf_ode.h). Returns 0, or -1 on a numerical failure. */
 int stf_sim_step(stf_sim *s);
 /* A body's state: position (m), quaternion (w,x,y,z), velocity (m/s), angular velocity
  * (rad/s), and the fluid's force on it (N), its mean over the last step: the impulse of all

@@ -630,6 +630,8 @@ double stf_fluid_spring_gain(const stf_fluid *f)
 }
 double stf_fluid_last_dt(const stf_fluid *f) { return f->dt_now; }
 
+void stf_fluid_get_def(const stf_fluid *f, stf_fluid_def *def) { *def = f->def; }
+
 long stf_fluid_saturated_steps(const stf_fluid *f)
 {
     return f->springs.n_alloc ? f->springs.saturated_steps : 0;

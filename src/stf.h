@@ -322,6 +322,8 @@ double stf_fluid_max_speed(const stf_fluid *f);
 double stf_fluid_spring_gain(const stf_fluid *f);
 /* The length of the last step, s (0 before the first). */
 double stf_fluid_last_dt(const stf_fluid *f);
+/* The definition the fluid was created with, as given (h 0 means 2 spacings). */
+void stf_fluid_get_def(const stf_fluid *f, stf_fluid_def *def);
 
 /* FNV-1a hash of positions and velocities, for determinism tests. */
 uint64_t stf_fluid_hash(const stf_fluid *f);

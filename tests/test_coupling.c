@@ -44,8 +44,10 @@ static dBodyID make_sphere(dWorldID w, dSpaceID s, double r, double mass, const 
     return b;
 }
 
-/* Gravity off, no walls: a ball shot into a blob. Whatever the fluid takes, the ball gives. */
-static void test_momentum(void)
+/* Gravity off, no walls: a ball shot into a blob. Whatever the fluid takes, the ball gives:
+ * at the CLI's 1 ms (one substep a step) and through app steps of 1/60 and 1/30 s, which
+ * stf_ode_step splits (each substep conserves, so their sum does). */
+static void momentum_case(double dt, int steps)
 {
     dWorldID w = dWorldCreate();
     dSpaceID s = dHashSpaceCreate(0);
@@ -65,20 +67,36 @@ static void test_momentum(void)
     const dReal *v = dBodyGetLinearVel(ball);
     for (int a = 0; a < 3; a++) p0[a] += 0.3 * v[a];
     double scale = 0.3 * 2.0, moved = 0;
-    for (int k = 0; k < 150; k++) CHECK(stf_ode_step(c, 0.001) == 0, "step %d failed", k);
+    for (int k = 0; k < steps; k++)
+        CHECK(stf_ode_step(c, dt) == 0, "step %d failed: %s", k, stf_ode_failure(c));
+    stf_ode_stats st;
+    stf_ode_get_stats(c, &st);
     fluid_momentum(f, p1);
     v = dBodyGetLinearVel(ball);
     moved = fabs(0.3 * v[0] - 0.3 * 2.0);
     for (int a = 0; a < 3; a++) p1[a] += 0.3 * v[a];
     double err3 = sqrt((p1[0] - p0[0]) * (p1[0] - p0[0]) + (p1[1] - p0[1]) * (p1[1] - p0[1]) +
                        (p1[2] - p0[2]) * (p1[2] - p0[2]));
-    printf("momentum: ball gave %.4g N s of %.3g; total changed by %.3g N s\n", moved, scale, err3);
+    printf("momentum, steps of %.4g s: %ld substeps (%.3g to %.3g ms); ball gave %.4g N s of "
+           "%.3g; total changed by %.3g N s\n", dt, st.substeps, 1e3 * st.dt_min,
+           1e3 * st.dt_max, moved, scale, err3);
     CHECK(moved > 0.05 * scale, "the ball hardly touched the fluid (%g N s)", moved);
     CHECK(err3 < 1e-12 * scale, "total momentum changed by %g N s", err3);
+    /* steps longer than the limits allow are split: the ball alone moves 2 m/s * dt, more
+       than half its 2 cm radius in 1/60 s */
+    if (dt > 0.01)
+        CHECK(st.substeps > steps, "%ld substeps for %d steps of %g s", st.substeps, steps, dt);
     stf_ode_destroy(c);
     stf_fluid_destroy(f);
     dSpaceDestroy(s);
     dWorldDestroy(w);
+}
+
+static void test_momentum(void)
+{
+    momentum_case(0.001, 150);
+    momentum_case(1.0 / 60, 9);
+    momentum_case(1.0 / 30, 5);
 }
 
 typedef struct pool {
