@@ -14,11 +14,14 @@
  *   stf bench dam SCENE               Carreau-Yasuda solver speed (issue 8): wall and steps per
  *                                      simulated second, pressure iterations, density error,
  *                                      peak memory, for 1 and 2 threads (--duration, 0.2 s)
+ *   stf bench convergence SCENE       every metric at the scene's dt, dt/2, dt/4 and at 1.5x its
+ *                                      spacing, side by side, each within --tolerance of the
+ *                                      finest (dt/4) run or not (exit 1, as `stf check`)
  *
- * Timings run the simulation in this process (no output file); the accuracy runs are
- * ordinary `stf run` child processes of this executable, whose output files are read back
- * for the metrics and the body / fluid centre-of-mass paths. Short by default: --full runs
- * the long versions. */
+ * Timings run the simulation in this process (no output file); the accuracy and convergence
+ * runs are ordinary `stf run` child processes of this executable, whose output files are read
+ * back for the metrics and the body / fluid centre-of-mass paths. Short by default: --full
+ * runs the long versions. */
 #define _DEFAULT_SOURCE /* getloadavg, readlink */
 #include <errno.h>
 #include <math.h>
@@ -29,6 +32,7 @@
 #include <string.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
+#include <sys/types.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
@@ -60,6 +64,8 @@ typedef struct bench_args {
     double error;      /* accuracy: error budget, m */
     const char *knobs; /* accuracy: comma list of dt, spacing, history, solver */
     int grow_domain;   /* scaling: 10x the particles by a wider pool (1) or a finer spacing */
+    double tolerance;  /* convergence: relative difference from the finest run allowed */
+    int jobs;          /* convergence: child runs at a time (1: one after the other) */
 } bench_args;
 
 /* The accuracy benchmark's knobs, in the order they run and are drawn. */
@@ -83,13 +89,14 @@ static int bad(const char *msg, const char *arg)
  * (--set, --unset and --threads apply to all.) */
 static const struct {
     const char *opt, *users;
-} option_users[] = {{"-o", "accuracy"},          {"--out", "accuracy"},
+} option_users[] = {{"-o", "accuracy convergence"}, {"--out", "accuracy convergence"},
                     {"--steps", "table1 effects scaling grid"},
                     {"--warmup", "table1 effects scaling"},
                     {"--repeat", "table1 effects scaling"},
                     {"--full", "table1 effects scaling grid accuracy"},
-                    {"--duration", "accuracy dam"}, {"--error", "accuracy"},
-                    {"--knobs", "accuracy"},       {"--grow", "scaling"}};
+                    {"--duration", "accuracy dam convergence"}, {"--error", "accuracy"},
+                    {"--knobs", "accuracy"},       {"--grow", "scaling"},
+                    {"--tolerance", "convergence"}, {"--jobs", "convergence"}};
 
 /* 1 if option s is one that benchmark what does not read (message printed). */
 static int not_for(const char *what, const char *s)
@@ -111,12 +118,16 @@ static int parse(int argc, char **argv, bench_args *a)
 {
     memset(a, 0, sizeof *a);
     a->error = 0.01;
-    if (argc < 1) return bad("needs one of table1, effects, accuracy, scaling, grid, dam; got", "");
+    a->tolerance = 0.2;
+    a->jobs = 1;
+    if (argc < 1)
+        return bad("needs one of table1, effects, accuracy, scaling, grid, dam, convergence; got", "");
     a->what = argv[0];
     if (strcmp(a->what, "table1") && strcmp(a->what, "effects") && strcmp(a->what, "accuracy") &&
-        strcmp(a->what, "scaling") && strcmp(a->what, "grid") && strcmp(a->what, "dam"))
-        return bad("unknown benchmark (allowed: table1, effects, accuracy, scaling, grid, dam):",
-                   a->what);
+        strcmp(a->what, "scaling") && strcmp(a->what, "grid") && strcmp(a->what, "dam") &&
+        strcmp(a->what, "convergence"))
+        return bad("unknown benchmark (allowed: table1, effects, accuracy, scaling, grid, dam, "
+                   "convergence):", a->what);
     for (int i = 1; i < argc; i++) {
         const char *s = argv[i];
         int more = i + 1 < argc;
@@ -175,6 +186,14 @@ static int parse(int argc, char **argv, bench_args *a)
             if (strcmp(g, "spacing") && strcmp(g, "domain"))
                 return bad("--grow must be spacing or domain, got", g);
             a->grow_domain = !strcmp(g, "domain");
+        } else if (!strcmp(s, "--tolerance") && more) {
+            a->tolerance = strtod(argv[++i], &end);
+            if (*end || end == argv[i] || !(a->tolerance >= 0) || !isfinite(a->tolerance))
+                return bad("--tolerance must be a fraction >= 0 (0.2: 20%), got", argv[i]);
+        } else if (!strcmp(s, "--jobs") && more) {
+            long t = strtol(argv[++i], &end, 10);
+            if (*end || t < 1 || t > 4) return bad("--jobs must be an integer in [1,4], got", argv[i]);
+            a->jobs = (int)t;
         } else if (!strcmp(s, "--full")) a->full = 1;
         else if (s[0] == '-') return bad("unknown or incomplete option", s);
         else if (!a->scene) a->scene = s;
@@ -698,10 +717,14 @@ typedef struct acc_run {
     int nf;           /* frames */
     double *ft, *fc;  /* frame time, fluid centre of mass */
     double err_body, err_com, err_metric; /* m */
+    long steps, substeps; /* coupled steps and fluid substeps of the run (-1: not in the file) */
 } acc_run;
 
-static int spawn_run(const char *self, const char *scene, const char *out, const bench_args *a,
-                     const char *const *extra, int nextra, double duration, double *cpu)
+/* Starts `SELF run SCENE -o OUT --quiet --duration D` with the bench's --threads and
+ * overrides, then the extra arguments (later --set win). Returns 0 and the child's pid, or
+ * -1 when it cannot be started. */
+static int spawn_start(const char *self, const char *scene, const char *out, const bench_args *a,
+                       const char *const *extra, int nextra, double duration, pid_t *child)
 {
     const char *argv[2 * MAX_OV + 32];
     int n = 0;
@@ -733,14 +756,34 @@ static int spawn_run(const char *self, const char *scene, const char *out, const
     }
     for (int i = 0; i < nextra; i++) argv[n++] = extra[i];
     argv[n] = NULL;
-    pid_t pid;
-    if (posix_spawn(&pid, self, NULL, NULL, (char *const *)argv, environ) != 0) return -1;
+    /* posix_spawn returns once the child has exec'ed: argv (and ovbuf) may change after */
+    return posix_spawn(child, self, NULL, NULL, (char *const *)argv, environ) != 0 ? -1 : 0;
+}
+
+/* Waits for child *pid (any child when *pid is -1; *pid is then the one that ended).
+ * Returns its exit code (-1 killed by a signal or not waited for) and its cpu seconds (user
+ * + system) in *cpu. */
+static int spawn_wait(pid_t *pid, double *cpu)
+{
     int st;
     struct rusage ru;
-    if (wait4(pid, &st, 0, &ru) < 0) return -1;
+    pid_t got;
+    while ((got = wait4(*pid, &st, 0, &ru)) < 0 && errno == EINTR) {}
+    if (got < 0) return -1;
+    *pid = got;
     *cpu = (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec +
            (double)ru.ru_stime.tv_sec + 1e-6 * (double)ru.ru_stime.tv_usec;
     return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+/* One child run to its end: spawn_start then spawn_wait. Returns its exit code (-1: it did
+ * not start or was killed) and its cpu seconds in *cpu. */
+static int spawn_run(const char *self, const char *scene, const char *out, const bench_args *a,
+                     const char *const *extra, int nextra, double duration, double *cpu)
+{
+    pid_t pid;
+    if (spawn_start(self, scene, out, a, extra, nextra, duration, &pid) != 0) return -1;
+    return spawn_wait(&pid, cpu);
 }
 
 static int read_run(const char *path, acc_run *r)
@@ -750,6 +793,9 @@ static int read_run(const char *path, acc_run *r)
     stf_h5r *h;
     if (stf_h5r_open(path, &h, err, sizeof err) != 0) return -1;
     if (stf_h5r_attr_double(h, "wall_seconds", &r->wall) != 0) r->wall = NAN;
+    double v;
+    r->steps = stf_h5r_attr_double(h, "steps", &v) == 0 ? lround(v) : -1;
+    r->substeps = stf_h5r_attr_double(h, "substeps", &v) == 0 ? lround(v) : -1;
     r->nb = 0;
     if (stf_h5r_body_count(h) > 0) {
         int nb = stf_h5r_body_series(h, stf_h5r_body_name(h, 0), &r->bt, &r->bp, NULL, NULL, NULL, NULL);
@@ -1080,6 +1126,315 @@ static int bench_accuracy(const bench_args *a, const char *self)
     return 0;
 }
 
+/* --------------------------------------------------------------------- convergence */
+
+/* The runs of `stf bench convergence`: the scene's dt and spacing times these factors. The
+ * dt/4 run is the finest, the one each metric is held against. */
+enum { NCONV = 4, CONV_FINEST = 2 };
+static const char *const conv_names[NCONV] = {"dt", "dt/2", "dt/4", "1.5x_spacing"};
+static const double conv_dt[NCONV] = {1, 0.5, 0.25, 1}, conv_sp[NCONV] = {1, 1, 1, 1.5};
+
+static const char convergence_usage[] =
+    "usage: stf bench convergence SCENE [--set KEY=VALUE]... [--unset KEY]... [--duration S]\n"
+    "                             [--threads N] [--jobs N] [-o DIR] [--tolerance FRAC]\n"
+    "Runs SCENE four times, as `stf run` child processes: at its dt and spacing (column \"dt\"),\n"
+    "at dt/2, at dt/4 (the finest run) and at its dt with 1.5x its spacing (\"1.5x_spacing\"),\n"
+    "by --set dt=... and --set fluid.spacing=... after your own --set's. It prints every metric\n"
+    "of the runs (those of `stf report`: each body's, then the fluid's) side by side, one row a\n"
+    "metric and one column a run, then:\n"
+    "  range   max - min over the runs, in the metric's unit\n"
+    "  spread  range / |the dt/4 run's value|, in %; \"n/a\" when the metric is null in every\n"
+    "          run, \"DIFFERS\" when it is null in some runs only (a ball that sinks at one\n"
+    "          resolution and not at another); \"-\" when the dt/4 value is 0\n"
+    "  ok      \"yes\" when every run is within the tolerance of the dt/4 run:\n"
+    "            |v - v_dt/4| <= FRAC |v_dt/4|; when v_dt/4 is 0: |v| <= FRAC S, S a scale of\n"
+    "            the unit: the body's radius (a body's lengths), the scene's spacing (the\n"
+    "            fluid's lengths), the simulated duration (times), 1 m/s, 1 (rolling_ratio);\n"
+    "            counts (bounces, escaped): equal, or all >= 1 (it bounces in every run);\n"
+    "            null in every run is ok, null in some runs only (DIFFERS) is not;\n"
+    "          \"no\" otherwise; \"-\" not judged (fluid.particles: the spacing sets it)\n"
+    "and each run's dt, spacing, wall and cpu seconds, steps, substeps and particles. The same\n"
+    "table goes to DIR/convergence.csv (null: an empty field).\n"
+    "options:\n"
+    "  --duration S      simulated seconds of each run (default: the scene's duration)\n"
+    "  --tolerance FRAC  the relative tolerance, a fraction >= 0 (default 0.2: 20%)\n"
+    "  --jobs N          child runs at a time, 1 to 4 (default 1: one after the other, so that\n"
+    "                    each run's wall seconds are its own)\n"
+    "  --threads N       OpenMP threads of each run\n"
+    "  -o DIR            the runs (run0.h5 .. run3.h5, columns in order) and convergence.csv\n"
+    "                    (default: convergence-NAME, NAME the scene's name); an existing\n"
+    "                    directory is used and its files of those names overwritten, as\n"
+    "                    `stf bench accuracy -o` does\n"
+    "A history memory given in steps (effects.history.d) halves in seconds with dt: a warning\n"
+    "says so and the runs go on; give effects.history.memory (s) to keep it. The scene's\n"
+    "dt_control and substep settings stay as they are.\n"
+    "exit codes: 0 every metric ok, 1 some metric not within the tolerance, 2 bad input (or a\n"
+    "run refused its settings), 3 a run failed numerically\n";
+
+/* One metric row: its key for stf_metrics_get, its name in the lists of metrics.h, and its
+ * body (index into the metrics' bodies, -1 for the fluid). */
+typedef struct conv_row {
+    char key[96];
+    const char *field;
+    int body;
+} conv_row;
+
+/* The verdict on one metric over the runs that ended (ran[i]), values v (NAN for null):
+ * 1 ok, 0 not within the tolerance, -1 not judged (the finest run failed, or the metric is
+ * set by the resolution). The spread column's text goes to spread, the spread in % to *pct and
+ * max - min to *range (NAN when undefined). scale: the absolute scale when the finest value
+ * is 0 (see the usage). */
+static int conv_judge(const conv_row *row, const double *v, const int *ran, double tol,
+                      double scale, char *spread, size_t len, double *range, double *pct)
+{
+    int nran = 0, ndef = 0;
+    double lo = INFINITY, hi = -INFINITY;
+    for (int i = 0; i < NCONV; i++) {
+        if (!ran[i]) continue;
+        nran++;
+        if (isnan(v[i])) continue;
+        ndef++;
+        lo = fmin(lo, v[i]), hi = fmax(hi, v[i]);
+    }
+    *range = ndef ? hi - lo : NAN;
+    *pct = NAN;
+    snprintf(spread, len, "-");
+    if (!ran[CONV_FINEST]) return -1;
+    if (ndef == 0) {
+        snprintf(spread, len, "n/a");
+        return 1;
+    }
+    if (ndef < nran) {
+        snprintf(spread, len, "DIFFERS");
+        return 0;
+    }
+    double f = v[CONV_FINEST];
+    if (f != 0 || hi == lo) {
+        *pct = f != 0 ? 100 * (hi - lo) / fabs(f) : 0;
+        snprintf(spread, len, "%.3g%%", *pct);
+    }
+    int count = !strcmp(cli_metric_unit(row->field), "count");
+    if (row->body < 0 && !strcmp(row->field, "particles")) return -1;
+    for (int i = 0; i < NCONV; i++) {
+        if (!ran[i]) continue;
+        int ok = count ? v[i] == f || (v[i] >= 1 && f >= 1)
+                 : f != 0 ? fabs(v[i] - f) <= tol * fabs(f)
+                          : fabs(v[i]) <= tol * scale;
+        if (!ok) return 0;
+    }
+    return 1;
+}
+
+/* A value as the table shows it: counts whole, null as "null". */
+static void conv_value(char *buf, size_t len, double v, int count)
+{
+    if (isnan(v)) snprintf(buf, len, "null");
+    else if (count) snprintf(buf, len, "%.0f", v);
+    else snprintf(buf, len, "%.5g", v);
+}
+
+static int bench_convergence(const bench_args *a, const char *self)
+{
+    char err[2048];
+    stf_scene *sc;
+    if (stf_scene_load(a->scene, a->ov, a->nov, &sc, err, sizeof err) != 0) {
+        fprintf(stderr, "%s\n", err);
+        return 2;
+    }
+    double dt = sc->dt, sp = sc->fluid.spacing;
+    double duration = a->duration > 0 ? a->duration : sc->duration;
+    int steps_memory = (sc->fluid.effects & STF_EFFECT_HISTORY) &&
+                       sc->fluid.history_mode == STF_HISTORY_WINDOW && !(sc->fluid.memory > 0);
+    int d = sc->fluid.d;
+    char dirbuf[128];
+    snprintf(dirbuf, sizeof dirbuf, "convergence-%s", sc->name);
+    stf_scene_free(sc);
+    if (steps_memory)
+        fprintf(stderr, "memory given in steps (d = %d): dt/2 and dt/4 change the memory in "
+                "seconds; give effects.history.memory\n", d);
+    const char *dir = a->out ? a->out : dirbuf;
+    if (mkdir(dir, 0777) != 0 && errno != EEXIST) {
+        fprintf(stderr, "stf bench: cannot create %s: %s\n", dir, strerror(errno));
+        return 2;
+    }
+    printf("# stf bench convergence %s: %.4g s simulated, dt %g s, spacing %g m, tolerance %g%% "
+           "of the dt/4 run\n", a->scene, duration, dt, sp, 100 * a->tolerance);
+    print_load();
+    fflush(stdout);
+
+    /* The runs, at most --jobs at a time. */
+    acc_run runs[NCONV];
+    memset(runs, 0, sizeof runs);
+    char path[NCONV][1024], vdt[NCONV][64], vsp[NCONV][64];
+    int code[NCONV], ran[NCONV] = {0};
+    pid_t pid[NCONV];
+    int started = 0, running = 0, ended = 0;
+    for (int i = 0; i < NCONV; i++) {
+        runs[i].value = dt * conv_dt[i];
+        snprintf(path[i], sizeof path[i], "%s/run%d.h5", dir, i);
+        snprintf(vdt[i], sizeof vdt[i], "dt=%.17g", dt * conv_dt[i]);
+        snprintf(vsp[i], sizeof vsp[i], "fluid.spacing=%.17g", sp * conv_sp[i]);
+        code[i] = -1;
+        pid[i] = -1;
+    }
+    while (ended < NCONV) {
+        while (running < a->jobs && started < NCONV) {
+            int i = started++;
+            const char *extra[4] = {"--set", vdt[i], "--set", vsp[i]};
+            if (spawn_start(self, a->scene, path[i], a, extra, 4, duration, &pid[i]) == 0) {
+                running++;
+                continue;
+            }
+            fprintf(stderr, "  %-12s cannot start %s\n", conv_names[i], self);
+            ended++;
+        }
+        if (!running) continue;
+        pid_t got = -1;
+        double cpu = 0;
+        int rc = spawn_wait(&got, &cpu);
+        int i = 0;
+        while (i < NCONV && (got < 0 || pid[i] != got)) i++;
+        if (i == NCONV) { /* no child left to wait for: the others count as failed */
+            fprintf(stderr, "stf bench convergence: lost track of the runs: %s\n", strerror(errno));
+            break;
+        }
+        running--, ended++;
+        pid[i] = -1;
+        code[i] = rc;
+        runs[i].cpu = cpu;
+        ran[i] = rc == 0 && read_run(path[i], &runs[i]) == 0;
+        if (ran[i])
+            fprintf(stderr, "  %-12s dt %g s, spacing %g m: ok, %.1f s wall, %.1f s cpu\n",
+                    conv_names[i], dt * conv_dt[i], sp * conv_sp[i], runs[i].wall, cpu);
+        else
+            fprintf(stderr, "  %-12s dt %g s, spacing %g m: %s (exit %d), %.1f s cpu\n",
+                    conv_names[i], dt * conv_dt[i], sp * conv_sp[i],
+                    rc == 3 ? "numerical failure" : "failed", rc, cpu);
+    }
+
+    /* The metric rows: each body's (the scene's bodies, the same in every run), the fluid's. */
+    const stf_metrics *mref = NULL;
+    for (int i = NCONV - 1; i >= 0; i--)
+        if (ran[i]) mref = &runs[i].m;
+    if (ran[CONV_FINEST]) mref = &runs[CONV_FINEST].m;
+    int nbody = 0, nfluid = 0;
+    while (stf_body_metric_names[nbody]) nbody++;
+    while (stf_fluid_metric_names[nfluid]) nfluid++;
+    int nb = mref ? mref->nbodies : 0, nrows = 0;
+    conv_row *rows = malloc(((size_t)nb * nbody + nfluid) * sizeof *rows);
+    if (!rows) {
+        fprintf(stderr, "stf bench convergence: out of memory\n");
+        return 2;
+    }
+    for (int b = 0; b < nb; b++)
+        for (int k = 0; k < nbody; k++, nrows++) {
+            snprintf(rows[nrows].key, sizeof rows[nrows].key, "%s.%s", mref->bodies[b].name,
+                     stf_body_metric_names[k]);
+            rows[nrows].field = stf_body_metric_names[k];
+            rows[nrows].body = b;
+        }
+    for (int k = 0; k < nfluid; k++, nrows++) {
+        snprintf(rows[nrows].key, sizeof rows[nrows].key, "fluid.%s", stf_fluid_metric_names[k]);
+        rows[nrows].field = stf_fluid_metric_names[k];
+        rows[nrows].body = -1;
+    }
+
+    char csv[1100];
+    snprintf(csv, sizeof csv, "%s/convergence.csv", dir);
+    FILE *fc = fopen(csv, "w");
+    if (!fc) {
+        fprintf(stderr, "stf bench: cannot write %s\n", csv);
+        free(rows);
+        for (int i = 0; i < NCONV; i++) free_run(&runs[i]);
+        return 2;
+    }
+    fprintf(fc, "metric,unit");
+    printf("%-28s %-13s", "metric", "unit");
+    for (int i = 0; i < NCONV; i++) fprintf(fc, ",%s", conv_names[i]), printf(" %12s", conv_names[i]);
+    fprintf(fc, ",range,spread_percent,ok\n");
+    printf(" %11s %9s %4s\n", "range", "spread", "ok");
+    int failed = 0, judged = 0;
+    for (int r = 0; r < nrows; r++) {
+        const conv_row *row = &rows[r];
+        const char *unit = cli_metric_unit(row->field);
+        int count = !strcmp(unit, "count");
+        double v[NCONV];
+        for (int i = 0; i < NCONV; i++)
+            if (!ran[i] || stf_metrics_get(&runs[i].m, row->key, &v[i]) != 0) v[i] = NAN;
+        double scale = !strcmp(unit, "s") ? duration
+                       : strcmp(unit, "m") ? 1.0
+                       : row->body >= 0 ? mref->bodies[row->body].radius
+                                        : sp;
+        char spread[32], buf[32];
+        double range, pct;
+        int ok = conv_judge(row, v, ran, a->tolerance, scale, spread, sizeof spread, &range, &pct);
+        judged += ok >= 0;
+        if (ok == 0) failed++;
+        printf("%-28s %-13s", row->key, unit);
+        fprintf(fc, "%s,%s", row->key, unit);
+        for (int i = 0; i < NCONV; i++) {
+            conv_value(buf, sizeof buf, v[i], count);
+            printf(" %12s", ran[i] ? buf : "failed");
+            if (!ran[i]) fprintf(fc, ",failed");
+            else if (isnan(v[i])) fprintf(fc, ",");
+            else fprintf(fc, ",%.9g", v[i]);
+        }
+        conv_value(buf, sizeof buf, range, count);
+        const char *verdict = ok > 0 ? "yes" : ok == 0 ? "no" : "-";
+        printf(" %11s %9s %4s\n", isnan(range) ? "-" : buf, spread, verdict);
+        if (isnan(range)) fprintf(fc, ",");
+        else fprintf(fc, ",%.9g", range);
+        if (!isnan(pct)) fprintf(fc, ",%.9g", pct);
+        else if (spread[0] == '-') fprintf(fc, ",");
+        else fprintf(fc, ",%s", spread);
+        fprintf(fc, ",%s\n", verdict);
+    }
+    /* Each run's settings and cost. */
+    static const char *const run_rows[7] = {"run.dt", "run.spacing", "run.wall", "run.cpu",
+                                            "run.steps", "run.substeps", "run.particles"};
+    static const char *const run_units[7] = {"s", "m", "s", "s", "count", "count", "count"};
+    for (int k = 0; k < 7; k++) {
+        printf("%-28s %-13s", run_rows[k], run_units[k]);
+        fprintf(fc, "%s,%s", run_rows[k], run_units[k]);
+        for (int i = 0; i < NCONV; i++) {
+            const acc_run *R = &runs[i];
+            double x = k == 0 ? dt * conv_dt[i] : k == 1 ? sp * conv_sp[i] : !ran[i] ? NAN
+                       : k == 2 ? R->wall : k == 3 ? R->cpu : k == 4 ? (double)R->steps
+                       : k == 5 ? (double)R->substeps : (double)R->m.particles;
+            if (k == 3 && code[i] >= 0) x = R->cpu; /* a failed run's cpu is still its own */
+            if (k >= 4 && x < 0) x = NAN;       /* not in the file */
+            char buf[32];
+            if (k == 2 || k == 3) snprintf(buf, sizeof buf, isnan(x) ? "-" : "%.2f", x);
+            else conv_value(buf, sizeof buf, x, k >= 4);
+            printf(" %12s", buf);
+            if (isnan(x)) fprintf(fc, ",");
+            else fprintf(fc, ",%.9g", x);
+        }
+        printf(" %11s %9s %4s\n", "", "", "-");
+        fprintf(fc, ",,,-\n");
+    }
+    fclose(fc);
+
+    int rc = failed ? 1 : 0;
+    for (int i = 0; i < NCONV; i++) {
+        if (ran[i]) continue;
+        fprintf(stderr, "stf bench convergence: run %s (dt %g s, spacing %g m, %s) %s\n",
+                conv_names[i], dt * conv_dt[i], sp * conv_sp[i], path[i],
+                code[i] == 3 ? "failed numerically" : code[i] == 2 ? "refused its settings"
+                : code[i] == 0 ? "wrote a file that cannot be read"
+                               : "failed (killed, or could not start)");
+        int c = code[i] == 2 ? 2 : 3;
+        if (c > rc) rc = c;
+    }
+    printf("# %d of %d metrics judged within %g%% of the dt/4 run%s; wall, cpu: s of each run "
+           "(cpu: user + system of the child process)\n", judged - failed, judged, 100 * a->tolerance,
+           rc >= 2 ? " (a run failed)" : "");
+    printf("# wrote %s\n", csv);
+    free(rows);
+    for (int i = 0; i < NCONV; i++) free_run(&runs[i]);
+    return rc;
+}
+
 /* ------------------------------------------------------------------------------ dam */
 
 /* The Carreau-Yasuda solver on a scene for `duration` simulated seconds with `threads`
@@ -1166,6 +1521,12 @@ static int bench_dam(const bench_args *a)
 int cli_bench(int argc, char **argv)
 {
     bench_args a;
+    if (argc >= 1 && !strcmp(argv[0], "convergence"))
+        for (int i = 1; i < argc; i++)
+            if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
+                fputs(convergence_usage, stdout);
+                return 0;
+            }
     if (parse(argc, argv, &a) != 0) return 2;
     if (a.threads) stf_set_threads(a.threads);
     if (!strcmp(a.what, "table1")) return bench_table1(&a);
@@ -1177,5 +1538,6 @@ int cli_bench(int argc, char **argv)
     ssize_t len = readlink("/proc/self/exe", self, sizeof self - 1);
     if (len <= 0) return bad("cannot find this executable", "/proc/self/exe");
     self[len] = 0;
+    if (!strcmp(a.what, "convergence")) return bench_convergence(&a, self);
     return bench_accuracy(&a, self);
 }

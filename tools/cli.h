@@ -9,6 +9,10 @@ int cli_report(int argc, char **argv);
 int cli_bench(int argc, char **argv); /* bench.c */
 int cli_sweep(int argc, char **argv); /* sweep.c */
 
+/* The unit of a metric named as in stf_body_metric_names or stf_fluid_metric_names
+ * (report.c): "m", "s", "m/s", "(omega R / v)", or "count" for the integers. */
+const char *cli_metric_unit(const char *key);
+
 struct stf_metrics;
 /* Whether expectation e holds for metrics m (run.c): 1 holds, 0 fails (a null metric fails),
  * -1 the key names no metric of this run. *value is the measured value (NAN for null). */

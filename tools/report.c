@@ -7,10 +7,14 @@
 #include "cli.h"
 #include "metrics.h"
 
-/* The unit of a body metric (metrics.h). */
-static const char *metric_unit(const char *key)
+/* The unit of a metric (metrics.h), a body's (without "NAME.") or the fluid's (without
+ * "fluid."): "count" for the integers (bounces, particles, escaped). */
+const char *cli_metric_unit(const char *key)
 {
+    if (!strcmp(key, "bounces") || !strcmp(key, "particles") || !strcmp(key, "escaped"))
+        return "count";
     if (!strcmp(key, "rolling_ratio")) return "(omega R / v)";
+    if (!strcmp(key, "max_speed")) return "m/s";
     if (strstr(key, "time") || strstr(key, "duration") || !strcmp(key, "rest_on_surface")) return "s";
     return "m";
 }
@@ -61,7 +65,7 @@ int cli_report(int argc, char **argv)
             snprintf(full, sizeof full, "%s.%s", b->name, key);
             stf_metrics_get(&m, full, &v);
             if (!strcmp(key, "bounces")) printf("  %-22s %d\n", key, b->bounces);
-            else line(key, v, metric_unit(key));
+            else line(key, v, cli_metric_unit(key));
         }
         printf("  %-22s %.4g %.4g %.4g m\n", "final_position", b->final_position[0],
                b->final_position[1], b->final_position[2]);
