@@ -104,10 +104,6 @@ static int check_def(const stf_fluid_def *d, char *err, size_t errlen)
         FAIL("plasticity: must be >= 0 (got %g)", d->plasticity);
     if (d->relaxation != STF_RELAX_JACOBI && d->relaxation != STF_RELAX_GAUSS_SEIDEL)
         FAIL("relaxation: must be jacobi or gauss_seidel (got %d)", d->relaxation);
-    if (!(d->projection >= 0 && d->projection <= 64))
-        FAIL("projection: must be in [0, 64] (got %d)", d->projection);
-    if (d->projection > 0 && d->relaxation != STF_RELAX_GAUSS_SEIDEL)
-        FAIL("projection: needs relaxation gauss_seidel");
     if (!(d->iterations >= 1 && d->iterations <= 64))
         FAIL("iterations: must be in [1, 64] (got %d)", d->iterations);
     if (d->effects & STF_EFFECT_HISTORY) {
@@ -187,7 +183,7 @@ int stf_fluid_create(const stf_fluid_def *def, stf_fluid **out, char *err, size_
     f->reorder_interval = 16;
     pressure_wall_table(f);
     if (def->model == STF_MODEL_CLAVET_STF && def->relaxation == STF_RELAX_GAUSS_SEIDEL &&
-        (def->effects & (STF_EFFECT_SPRINGS | STF_EFFECT_PRESSURE)) &&
+        (def->effects & STF_EFFECT_SPRINGS) &&
         !(f->gs = calloc(1, sizeof *f->gs))) {
         free(f);
         FAIL("out of memory");
@@ -563,12 +559,7 @@ int stf_fluid_step(stf_fluid *f, double dt)
     if (has(f, STF_EFFECT_PRESSURE)) {
         TIMED(STAGE_PRESSURE, pressure_relax(f, dt));
         if (fluid_check(f, "pressure")) return -1;
-        if (f->def.projection > 0) {
-            int rc = 0;
-            TIMED(STAGE_PRESSURE, rc = gs_project(f));
-            if (rc != 0) goto oom;
-            if (fluid_check(f, "pressure projection")) return -1;
-        }
+
     }
     TIMED(STAGE_COLLIDE, collide_all(f, dt));
 #pragma omp parallel for schedule(static)

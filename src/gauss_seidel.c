@@ -197,63 +197,6 @@ static void spring_visit(stf_fluid *f, stf_gs *g, int i, const void *arg, int ne
     relax_springs_of(f, g, i, a->dt, a->khist_scale, near);
 }
 
-/* The density constraint of particle i (gs_project): C = rho_i / rho0 - 1 with Clavet's
- * kernel density rho_i = sum_j (1 - r/h)^2, only when compressed (C > 0: a free surface is
- * not pulled). Position-based fluids' step for one constraint (Macklin and Mueller,
- * "Position based fluids", SIGGRAPH 2013), Gauss-Seidel: lambda = -C / sum_k |grad_k C|^2,
- * x_k += lambda grad_k C for i and its neighbours: the pair terms cancel (momentum exact). */
-static void project_visit(stf_fluid *f, stf_gs *g, int i, const void *arg, int near)
-{
-    (void)arg;
-    double *x = f->x, h = f->h, inv_h = 1.0 / h, rho0 = f->rest_density;
-    const int32_t *nb = grid_row(&f->grid, i);
-    int cnt = f->grid.count[i];
-    double rho = 0, gi[3] = {0, 0, 0}, g2 = 0;
-    double xi = x[3 * i], yi = x[3 * i + 1], zi = x[3 * i + 2];
-    if (near) /* the pairs of other cells' turns (near = 0) are few: the constraint is i's */
-        for (int k = 0; k < cnt; k++) {
-            int j = nb[k];
-            if (!near_cells(g, i, j)) return; /* a neighbour out of reach: the serial pass */
-        }
-    else {
-        int far = 0;
-        for (int k = 0; k < cnt && !far; k++) far = !near_cells(g, i, nb[k]);
-        if (!far) return; /* done in the coloured sweep */
-    }
-    for (int k = 0; k < cnt; k++) {
-        int j = nb[k];
-        double rx = x[3 * j] - xi, ry = x[3 * j + 1] - yi, rz = x[3 * j + 2] - zi;
-        double r = sqrt(rx * rx + ry * ry + rz * rz);
-        if (!(r < h) || r <= 1e-12 * h) continue;
-        double a = 1.0 - r * inv_h, gm = 2.0 * a * inv_h / (rho0 * r); /* |grad_j C| / r */
-        rho += a * a;
-        gi[0] += gm * rx, gi[1] += gm * ry, gi[2] += gm * rz;
-        g2 += gm * gm * r * r;
-    }
-    double C = rho / rho0 - 1.0;
-    if (!(C > 0)) return;
-    double denom = g2 + gi[0] * gi[0] + gi[1] * gi[1] + gi[2] * gi[2];
-    if (!(denom > 0)) return;
-    double lam = -C / denom;
-    for (int k = 0; k < cnt; k++) { /* grad_j C = -gm r_ij, grad_i C = sum gm r_ij */
-        int j = nb[k];
-        double rx = x[3 * j] - xi, ry = x[3 * j + 1] - yi, rz = x[3 * j + 2] - zi;
-        double r = sqrt(rx * rx + ry * ry + rz * rz);
-        if (!(r < h) || r <= 1e-12 * h) continue;
-        double a = 1.0 - r * inv_h, gm = 2.0 * a * inv_h / (rho0 * r);
-        x[3 * j] -= lam * gm * rx, x[3 * j + 1] -= lam * gm * ry, x[3 * j + 2] -= lam * gm * rz;
-    }
-    x[3 * i] += lam * gi[0], x[3 * i + 1] += lam * gi[1], x[3 * i + 2] += lam * gi[2];
-}
-
-int gs_project(stf_fluid *f)
-{
-    stf_gs *g = f->gs;
-    if (gs_bin(g, f->x, f->n, f->h * (1.0 + 1e-9)) != 0) return -1;
-    for (int it = 0; it < f->def.projection; it++) sweep(f, g, project_visit, NULL);
-    return 0;
-}
-
 int gs_springs(stf_fluid *f, double dt, double khist_scale)
 {
     stf_gs *g = f->gs;

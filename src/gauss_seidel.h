@@ -22,9 +22,6 @@ typedef struct stf_gs {
 /* Relaxes the springs of f (rows as springs.c left them) for def.iterations sweeps.
  * khist_scale: Eq. 6's factor (0 without history). Returns 0, -1 out of memory. */
 int gs_springs(stf_fluid *f, double dt, double khist_scale);
-/* The density projection (pressure effect, projection > 0): def.projection Gauss-Seidel
- * sweeps of the unilateral density constraints. Returns 0, -1 out of memory. */
-int gs_project(stf_fluid *f);
 void gs_free(stf_gs *g);
 
 #endif

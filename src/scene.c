@@ -604,11 +604,7 @@ static int parse_effect_params(loader *L, int e, const mapv *p)
         if (get_num(L, p, "k", R_POS, &f->k) < 0) return SCENE_BAD;
         if (get_num(L, p, "k_near", R_NONNEG, &f->k_near) < 0) return SCENE_BAD;
         if (get_bool(L, p, "tension", &f->tension) < 0) return SCENE_BAD;
-        {
-            long pr = f->projection;
-            if (get_int(L, p, "projection", 0, 64, &pr) < 0) return SCENE_BAD;
-            f->projection = (int)pr;
-        }
+
         return get_num(L, p, "rest_density", R_NONNEG, &f->rest_density) < 0 ? SCENE_BAD : 0;
     case 3:
         if (get_num(L, p, "k_min", R_NONNEG, &f->k_min) < 0) return SCENE_BAD;
@@ -625,7 +621,7 @@ static int parse_effect_params(loader *L, int e, const mapv *p)
 
 static const char *const gravity_keys[] = {"g", NULL};
 static const char *const viscosity_keys[] = {"sigma", "beta", NULL};
-static const char *const pressure_keys[] = {"k", "k_near", "rest_density", "tension", "projection", NULL};
+static const char *const pressure_keys[] = {"k", "k_near", "rest_density", "tension", NULL};
 static const char *const springs_keys[] = {"k_min", "yield_ratio", "plasticity", NULL};
 static const char *const history_keys[] = {"q", "d", "memory", "k_hist", "mode", "reference_spacing", "terms", "k_onset", NULL};
 static const char *const stick_keys[] = {"stick", NULL};

@@ -145,10 +145,6 @@ typedef struct stf_fluid_def {
     /* double density relaxation (Clavet Alg. 2) */
     double k;              /* pressure stiffness, m/s^2 (> 0) */
     double k_near;         /* near-pressure stiffness, m/s^2 (>= 0) */
-    int projection;        /* sweeps of the density projection (ours, gauss_seidel.c: a
-                              particle compressed beyond the rest density is pushed back to
-                              it, position-based-fluids style), 0..64; 0: off (Clavet's
-                              pressure alone). Needs relaxation gauss_seidel */
     double rest_density;   /* rest kernel density (sum of (1-r/h)^2), dimensionless;
                               0 means the value of the initial cubic lattice */
     int tension;           /* 1: Clavet's pressure as written, negative below rest density
