@@ -1220,6 +1220,15 @@ static int set_last(loader *L, int oi, struct fy_node *parent, const char *comp)
     if (!v) return override_fail(L, oi, o->key, "cannot parse the value as UTF-8 YAML");
     mark_override(v, oi);
     if (fy_node_is_mapping(parent)) {
+        /* d and memory are the history's one window, in steps or seconds: setting one
+           replaces the other (a scene's memory, or its material's) */
+        const char *other = !strcmp(comp, "d") ? "memory" : !strcmp(comp, "memory") ? "d" : NULL;
+        char *dot = strrchr(o->key, '.');
+        struct fy_node_pair *twin =
+            other && dot && dot - o->key == 15 && !strncmp(o->key, "effects.history", 15)
+                ? fy_node_mapping_lookup_pair_by_string(parent, other, FY_NT)
+                : NULL;
+        if (twin) fy_node_free(fy_node_mapping_remove_by_key(parent, fy_node_pair_key(twin)));
         struct fy_node_pair *p = fy_node_mapping_lookup_pair_by_string(parent, comp, FY_NT);
         if (p) return fy_node_pair_set_value(p, v) ? override_fail(L, oi, o->key, "cannot set") : 0;
         struct fy_node *k = fy_node_create_scalar_copy(L->fyd, comp, FY_NT);
@@ -1534,10 +1543,8 @@ static int merge_material(loader *L)
             if (fy_node_is_mapping(val)) rc = fill_missing(L, val, me);
         }
     }
-    if (!rc) { /* the stored text holds the material itself */
-        struct fy_node *gone = fy_node_mapping_remove_by_key(root, fy_node_copy(L->fyd, mk));
-        if (gone) fy_node_free(gone);
-    }
+    if (!rc) /* the stored text holds the material itself; this frees pair and key */
+        fy_node_free(fy_node_mapping_remove_by_key(root, mk));
     return rc;
 }
 
