@@ -1104,8 +1104,8 @@ static void file_stem(const char *path, char *out, size_t n)
 static int parse_scene(loader *L)
 {
     static const char *const keys[] = {
-        "name",      "duration", "dt",     "frame_rate", "bounce_min_rise", "fluid", "effects",
-        "container", "dt_control", "bodies", "expect", "material", NULL};
+        "name",      "duration", "dt", "frame_rate", "bounce_min_rise", "material", "fluid",
+        "effects",   "container", "dt_control", "bodies", "expect", NULL};
     static const char *const dt_controls[] = {"adaptive", "fixed", NULL};
     stf_scene *s = L->s;
     mapv top;
