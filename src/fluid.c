@@ -104,6 +104,10 @@ static int check_def(const stf_fluid_def *d, char *err, size_t errlen)
         FAIL("plasticity: must be >= 0 (got %g)", d->plasticity);
     if (d->relaxation != STF_RELAX_JACOBI && d->relaxation != STF_RELAX_GAUSS_SEIDEL)
         FAIL("relaxation: must be jacobi or gauss_seidel (got %d)", d->relaxation);
+    if (!(d->spring_damping >= 0 && d->spring_damping <= 1))
+        FAIL("damping: must be in [0, 1] s (got %g)", d->spring_damping);
+    if (d->spring_damping > 0 && d->relaxation != STF_RELAX_GAUSS_SEIDEL)
+        FAIL("damping: needs relaxation gauss_seidel");
     if (!(d->iterations >= 1 && d->iterations <= 64))
         FAIL("iterations: must be in [1, 64] (got %d)", d->iterations);
     if (d->effects & STF_EFFECT_HISTORY) {
@@ -689,7 +693,7 @@ int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
         "sigma: %.9g  # 1/s\nbeta: %.9g  # 1/m\nk: %.9g  # m/s^2\nk_near: %.9g  # m/s^2\n"
         "tension: %s\nrest_density: %.9g  # kernel sum\nrest_near_density: %.9g  # kernel sum\n"
         "k_min: %.9g  # 1/s^2\nyield_ratio: %.9g\nplasticity: %.9g  # 1/s\n"
-        "relaxation: %s\niterations: %d\nq: %.9g\n"
+        "relaxation: %s\niterations: %d\nspring_damping: %.9g  # s\nq: %.9g\n"
         "history_mode: %s\nhistory_steps: %d  # at the first step (with memory: memory / dt)\n"
         "memory: %.9g  # s (0: history_steps as given)\nk_hist: %.9g  # 1/s^2 per m/s^q\n"
         "reference_spacing: %.9g  # m\nk_onset: %.9g  # 1/s^2\n"
@@ -697,7 +701,8 @@ int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
         effects, d->spacing, d->material_spacing, f->h, d->density, f->mass, d->jitter, d->gravity[0], d->gravity[1],
         d->gravity[2], d->sigma, d->beta, d->k, d->k_near, d->tension ? "true" : "false",
         f->rest_density, f->rest_near, d->k_min, d->yield_ratio, d->plasticity,
-        d->relaxation == STF_RELAX_GAUSS_SEIDEL ? "gauss_seidel" : "jacobi", d->iterations, d->q,
+        d->relaxation == STF_RELAX_GAUSS_SEIDEL ? "gauss_seidel" : "jacobi", d->iterations,
+        d->spring_damping, d->q,
         d->history_mode == STF_HISTORY_FULL  ? "full"
         : d->history_mode == STF_HISTORY_SOE ? "soe"
                                              : "window",

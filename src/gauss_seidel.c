@@ -20,6 +20,17 @@
  * implicit solution of the compliant network (lambda carries what earlier sweeps did).
  * Every update moves a pair by equal and opposite amounts: linear momentum is exact.
  *
+ * Damping (springs.damping = tau, ours). A jammed network as stiff as a solid, pushed each
+ * step by the pressure relaxation after it, chatters: at k_hist 4e7 the resting pool's
+ * particles kept moving at 3-6 cm/s, and that motion kept their history stiffness high (the
+ * fractional derivative of a noise), so the fluid never softened. XPBD's constraint damping
+ * (Macklin et al., section 4.1) puts a dashpot of coefficient tau K beside each spring of
+ * stiffness K (Kelvin-Voigt, relaxation time tau): with gamma = tau / dt,
+ *     dlambda = (-C - alpha lambda - gamma n.(dx_j - dx_i)) / ((1 + gamma) 2 + alpha),
+ * dx the moves since the step's start. A time in seconds: the same dashpot at any dt; it
+ * damps the grid-scale modes of a stiff spring (omega tau >> 1) and leaves the slow ones (a
+ * bouncing ball's, omega tau << 1) as they are. 0: none.
+ *
  * Parallel and deterministic. The particles are binned in cells at least as wide as the
  * longest spring; a particle's springs reach only the 3 x 3 x 3 cells about its own, so cells
  * whose indices differ by at least 3 along some axis touch disjoint particles. The 27 colours
@@ -142,8 +153,9 @@ static void relax_springs_of(stf_fluid *f, stf_gs *g, int i, double dt, double k
 {
     const stf_springs *s = &f->springs;
     double *x = f->x;
-    const double *D = f->hist.D;
+    const double *D = f->hist.D, *xp = f->xprev;
     double h = f->h, dt2 = dt * dt, onset = f->def.k_onset, k_min = f->def.k_min;
+    double gamma = f->def.spring_damping / dt; /* XPBD's damping, tau / dt */
     const int32_t *p = s->partner + (size_t)i * s->stride;
     const double *Ls = s->rest + (size_t)i * s->stride;
     double *lam = g->lambda + (size_t)i * s->stride;
@@ -162,7 +174,13 @@ static void relax_springs_of(stf_fluid *f, stf_gs *g, int i, double dt, double k
         double c = dt2 * kij * (1.0 - L / h);
         if (!(c > 0)) continue;
         double alpha = 2.0 / c;
-        double dl = (-(r - L) - alpha * lam[k]) / (2.0 + alpha);
+        /* the pair's approach along the spring since the step's start (its relative
+           velocity times dt): the dashpot's share, 0 without damping */
+        double du = gamma > 0 ? ((x[3 * j] - xp[3 * j] - x[3 * i] + xp[3 * i]) * rx +
+                                 (x[3 * j + 1] - xp[3 * j + 1] - x[3 * i + 1] + xp[3 * i + 1]) * ry +
+                                 (x[3 * j + 2] - xp[3 * j + 2] - x[3 * i + 2] + xp[3 * i + 2]) * rz) / r
+                              : 0.0;
+        double dl = (-(r - L) - alpha * lam[k] - gamma * du) / ((1.0 + gamma) * 2.0 + alpha);
         lam[k] += dl;
         double ux = dl * rx / r, uy = dl * ry / r, uz = dl * rz / r;
         x[3 * i] -= ux, x[3 * i + 1] -= uy, x[3 * i + 2] -= uz;

@@ -155,6 +155,9 @@ typedef struct stf_fluid_def {
     double yield_ratio;    /* tolerated deformation / rest length, dimensionless (>= 0) */
     double plasticity;     /* rest-length creep rate alpha, 1/s (>= 0) */
     int relaxation;        /* enum stf_relaxation: how the springs' displacements are applied */
+    double spring_damping; /* s (>= 0; scene key springs.damping): gauss_seidel only, a
+                              dashpot beside each spring with the relaxation time tau
+                              (Kelvin-Voigt; src/gauss_seidel.c). 0: none */
     int iterations;        /* gauss_seidel: sweeps over the spring constraints per step, 1..64 */
     /* history (Eq. 3-6): k = k_min + k_hist * dt^(1-q)/Gamma(3-q) * |sum a (v_i - v_j)| */
     double q;              /* fractional order, in (0,1) */

@@ -3,7 +3,8 @@
  *
  *  exact pair    one spring of gain c = dt^2 k (1 - L/h), stretched by e: one sweep leaves
  *                e / (1 + c), for a soft spring (Clavet's e (1 - c) to first order) and for
- *                one a million times stiffer (no overshoot: it closes, it does not flip).
+ *                one a million times stiffer (no overshoot: it closes, it does not flip);
+ *                with the dashpot of relaxation time tau, e / (1 + c (1 + tau/dt)).
  *  momentum      a sheared, jittered block with every internal effect, the history springs
  *                thousands of times stiffer than the Jacobi form can hold at this step, and
  *                sum m v is conserved to round-off over 200 steps.
@@ -45,13 +46,14 @@ static stf_fluid *make(const stf_fluid_def *d)
 /* Two particles 0.6 h apart moving apart at u each: the spring made at the first step
  * (rest length L = its length then, no plastic creep) is stretched by 2 u dt at the next
  * prediction. */
-static void exact_pair(double k_min)
+static void exact_pair(double k_min, double tau)
 {
     stf_fluid_def d = stf_default_fluid_def();
     d.effects = STF_EFFECT_SPRINGS;
     d.relaxation = STF_RELAX_GAUSS_SEIDEL;
     d.k_min = k_min;
     d.plasticity = 0;
+    d.spring_damping = tau;
     stf_fluid *f = make(&d);
     if (!f) return;
     double h = 2 * d.spacing, dt = 1e-3, u = 0.01;
@@ -68,14 +70,16 @@ static void exact_pair(double k_min)
     double e = (v[3] - v[0]) * dt; /* the stretch after the next prediction */
     CHECK(stf_fluid_step(f, dt) == 0, "step 2: %s", stf_fluid_failure(f));
     stf_fluid_get_positions(f, x);
-    double c = dt * dt * k_min * (1 - L / h);
-    double want = L + e / (1 + c);
+    /* the pair approaches by e along the spring in the step: with the dashpot (gamma = tau/dt)
+       the closing is that of a gain c (1 + gamma) */
+    double c = dt * dt * k_min * (1 - L / h), g = tau / dt;
+    double want = L + e / (1 + c * (1 + g));
     CHECK(fabs((x[3] - x[0]) - want) <= 1e-12 * h,
-          "k_min %g: separation %.17g, want L + e/(1+c) = %.17g (c = %g)", k_min, x[3] - x[0],
-          want, c);
+          "k_min %g, tau %g: separation %.17g, want L + e/(1+c(1+tau/dt)) = %.17g (c = %g)", k_min,
+          tau, x[3] - x[0], want, c);
     CHECK_NEAR(x[0] + x[3], 0.6 * h, 1e-15, "the pair's centre stays put");
-    printf("exact pair: k_min %g, c = %.3g: stretch %.3g -> %.3g (1/(1+c) = %.3g)\n", k_min, c, e,
-           x[3] - x[0] - L, 1 / (1 + c));
+    printf("exact pair: k_min %g, c = %.3g, tau %g s: stretch %.3g -> %.3g (1/(1+c(1+tau/dt)) = "
+           "%.3g)\n", k_min, c, tau, e, x[3] - x[0] - L, 1 / (1 + c * (1 + g)));
     stf_fluid_destroy(f);
 }
 
@@ -165,8 +169,9 @@ static uint64_t run_hash(int threads)
 
 int main(void)
 {
-    exact_pair(100.0);
-    exact_pair(1e8);
+    exact_pair(100.0, 0);
+    exact_pair(1e8, 0);
+    exact_pair(1e5, 0.002);
     momentum_and_stability();
     uint64_t h1 = run_hash(1), h2 = run_hash(2);
     CHECK(h1 == h2 && h1 != 0, "1 thread %016llx, 2 threads %016llx", (unsigned long long)h1,
