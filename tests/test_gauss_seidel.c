@@ -4,7 +4,8 @@
  *  exact pair    one spring of gain c = dt^2 k (1 - L/h), stretched by e: one sweep leaves
  *                e / (1 + c), for a soft spring (Clavet's e (1 - c) to first order) and for
  *                one a million times stiffer (no overshoot: it closes, it does not flip);
- *                with the dashpot of relaxation time tau, e / (1 + c (1 + tau/dt)).
+ *                with the dashpot of relaxation time tau, XPBD's damped update exactly (it
+ *                acts on a new spring's approach too).
  *  momentum      a sheared, jittered block with every internal effect, the history springs
  *                thousands of times stiffer than the Jacobi form can hold at this step, and
  *                sum m v is conserved to round-off over 200 steps.
@@ -60,26 +61,32 @@ static void exact_pair(double k_min, double tau)
     double a[3] = {0, 0, 0}, b[3] = {0.6 * h, 0, 0}, va[3] = {-u, 0, 0}, vb[3] = {u, 0, 0};
     stf_fluid_add_particle(f, a, va);
     stf_fluid_add_particle(f, b, vb);
+    /* the XPBD update of one spring of rest length Lr at separation r that approached by du
+       in the step: r + 2 dlambda, dlambda = (-(r - Lr) - g du) / ((1 + g) 2 + 2/c) */
+    double g = tau / dt, r0 = 0.6 * h, Lr = r0 + 2 * u * dt; /* made at its length, step 1 */
+    double c = dt * dt * k_min * (1 - Lr / h);
+#define XPBD(r, du) ((r) + 2 * (-((r) - Lr) - g * (du)) / ((1 + g) * 2 + 2 / c))
     CHECK(stf_fluid_step(f, dt) == 0, "step 1: %s", stf_fluid_failure(f));
-    double x[6];
+    double x[6], v[6];
     stf_fluid_get_positions(f, x);
-    double L = x[3] - x[0]; /* no spring force in step 1: the spring is new, at its length */
-    CHECK_NEAR(L, 0.6 * h + 2 * u * dt, 1e-15, "step 1: the pair moved freely");
-    double v[6];
+    double want1 = XPBD(Lr, 2 * u * dt); /* the new spring: no strain, only the dashpot */
+    CHECK(fabs((x[3] - x[0]) - want1) <= 1e-12 * h, "step 1: separation %.17g, want %.17g",
+          x[3] - x[0], want1);
+    double sep1 = x[3] - x[0];
     stf_fluid_get_velocities(f, v);
-    double e = (v[3] - v[0]) * dt; /* the stretch after the next prediction */
+    double e = (v[3] - v[0]) * dt; /* the approach in the next prediction */
     CHECK(stf_fluid_step(f, dt) == 0, "step 2: %s", stf_fluid_failure(f));
     stf_fluid_get_positions(f, x);
-    /* the pair approaches by e along the spring in the step: with the dashpot (gamma = tau/dt)
-       the closing is that of a gain c (1 + gamma) */
-    double c = dt * dt * k_min * (1 - L / h), g = tau / dt;
-    double want = L + e / (1 + c * (1 + g));
+    double want = XPBD(sep1 + e, e);
+#undef XPBD
     CHECK(fabs((x[3] - x[0]) - want) <= 1e-12 * h,
-          "k_min %g, tau %g: separation %.17g, want L + e/(1+c(1+tau/dt)) = %.17g (c = %g)", k_min,
-          tau, x[3] - x[0], want, c);
+          "k_min %g, tau %g: separation %.17g, want %.17g (c = %g)", k_min, tau, x[3] - x[0], want, c);
+    if (tau == 0) /* without the dashpot: the stretch left is e / (1 + c) */
+        CHECK(fabs((x[3] - x[0] - Lr) - (sep1 + e - Lr) / (1 + c)) <= 1e-12 * h,
+              "k_min %g: the stretch closes by c/(1+c)", k_min);
     CHECK_NEAR(x[0] + x[3], 0.6 * h, 1e-15, "the pair's centre stays put");
-    printf("exact pair: k_min %g, c = %.3g, tau %g s: stretch %.3g -> %.3g (1/(1+c(1+tau/dt)) = "
-           "%.3g)\n", k_min, c, tau, e, x[3] - x[0] - L, 1 / (1 + c * (1 + g)));
+    printf("exact pair: k_min %g, c = %.3g, tau %g s: stretch %.3g -> %.3g\n", k_min, c, tau,
+           sep1 + e - Lr, x[3] - x[0] - Lr);
     stf_fluid_destroy(f);
 }
 
