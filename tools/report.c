@@ -15,6 +15,7 @@ const char *cli_metric_unit(const char *key)
         return "count";
     if (!strcmp(key, "rolling_ratio")) return "(omega R / v)";
     if (!strcmp(key, "max_speed")) return "m/s";
+    if (!strncmp(key, "density_error", 13)) return "1";
     if (strstr(key, "time") || strstr(key, "duration") || !strcmp(key, "rest_on_surface")) return "s";
     return "m";
 }
