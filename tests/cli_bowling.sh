@@ -4,7 +4,7 @@
 # material scales itself to the spacing, fluid.reference_spacing), over STF_BOWLING_SECONDS
 # (default 4 s: impact, bounce, roll and rest).
 #  - with history: the jammed fluid carries the ball (penetration <= R/2), it bounces at least
-#    once on the surface, rolls at least R on the surface turning (omega R / v >= 0.7), and
+#    once on the surface, rolls at least 2 R on the surface turning (omega R / v >= 0.7), and
 #    rests on the surface (slower than 5 cm/s, depth <= R) for at least 1 s;
 #  - without history (bowling_ball_no_history.yaml): the ball is at least R deep within 0.3 s
 #    of contact (read from its own body series), never bounces and never rests on the surface;
@@ -37,7 +37,7 @@ def want(ok, what):
         bad.append(what)
 want(h["penetration_depth"] <= 0.5 * R, "with history: penetration %.4f m <= R/2 = %.4f m" % (h["penetration_depth"], 0.5 * R))
 want(h["bounces"] >= 1, "with history: %d bounce(s) on the surface" % h["bounces"])
-want(h["roll_distance"] >= R, "with history: rolls %.3f m >= R on the surface" % h["roll_distance"])
+want(h["roll_distance"] >= 2 * R, "with history: rolls %.3f m >= 2 R on the surface" % h["roll_distance"])
 want(h["rolling_ratio"] is not None and h["rolling_ratio"] >= 0.7,
      "with history: rolling, omega R / v = %s >= 0.7" % h["rolling_ratio"])
 want(h["rest_on_surface"] >= 1.0, "with history: rests %.2f s on the surface >= 1 s" % h["rest_on_surface"])
