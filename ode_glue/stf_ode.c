@@ -1,6 +1,7 @@
 /* stf_ode.c - the coupler: ODE geoms as fluid colliders, fluid impulses as ODE forces. */
 #include "stf_ode.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -369,4 +370,19 @@ void stf_ode_body_fluid_force(const stf_ode *c, dBodyID body, double force[3], d
             torque[q] += c->torque[3 * k + q];
         }
     }
+}
+
+int stf_ode_settle(stf_ode *c, double dt, int steps, double tau)
+{
+    for (int k = 0; k < c->n; k++) { /* the poses as synced, the velocities zero */
+        sync_collider(c, &c->att[k]);
+        stf_fluid_hold_collider(c->fluid, c->att[k].collider);
+    }
+    double keep = exp(-dt / tau);
+    for (int s = 0; s < steps; s++) {
+        if (stf_fluid_step(c->fluid, dt) != 0) return -1;
+        stf_fluid_scale_velocities(c->fluid, keep);
+    }
+    stf_fluid_reset_clock(c->fluid);
+    return 0;
 }

@@ -85,4 +85,11 @@ void stf_ode_body_fluid_force(const stf_ode *c, dBodyID body, double force[3], d
 #ifdef __cplusplus
 }
 #endif
+/* Lets the fluid settle around the attached solids held still (their velocities taken as
+ * zero, ODE not stepped) for `steps` fluid steps of dt, every velocity damped by
+ * exp(-dt / tau) after each, then sets the fluid's clock back to 0: the fluid starts at rest
+ * with the pressure that holds it up (scene key fluid.settle). 0, or -1 on a numerical
+ * failure (stf_fluid_failure). */
+int stf_ode_settle(stf_ode *c, double dt, int steps, double tau);
+
 #endif

@@ -301,6 +301,19 @@ int stf_sim_create(const stf_scene *scene, stf_sim **out, char *err, size_t errl
     }
     s->removed = stf_ode_remove_overlaps(s->coupler);
     body_bounds(s);
+    if (scene->settle > 0) {
+        /* fluid.settle: the fluid's blocks are a lattice without pressure, a fluid in free
+           fall, not at rest: before t = 0 it settles into the pressure that holds it up,
+           around the bodies held still, its motions damped with a time constant of an eighth
+           of the settling time (so they fall by e^-8) */
+        int n = (int)lround(scene->settle / scene->dt);
+        if (stf_ode_settle(s->coupler, scene->dt, n, scene->settle / 8) != 0) {
+            snprintf(err, errlen, "%s: fluid.settle: the settling failed: %s", scene->path,
+                     stf_fluid_failure(s->fluid));
+            rc = 3;
+            goto fail;
+        }
+    }
     s->ngeoms = dSpaceGetNumGeoms(s->space);
     s->geoms = calloc((size_t)s->ngeoms + 1, sizeof *s->geoms);
     if (!s->geoms) {

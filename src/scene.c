@@ -452,7 +452,8 @@ static int parse_blocks(loader *L, const mapv *fluid)
 
 static int parse_fluid(loader *L, const mapv *top)
 {
-    static const char *const keys[] = {"model", "spacing", "density", "h", "jitter", "blocks", NULL};
+    static const char *const keys[] = {"model", "spacing", "density", "h", "jitter", "settle",
+                                       "blocks", NULL};
     static const char *const models[] = {"clavet_stf", "carreau_yasuda", NULL};
     stf_fluid_def *f = &L->s->fluid;
     struct fy_node *k, *v = lookup(top, "fluid", &k);
@@ -474,6 +475,8 @@ static int parse_fluid(loader *L, const mapv *top)
        (h (rho - rho0) / (rho0 dt) in one step): its blocks start on the lattice by default */
     if (f->model == STF_MODEL_CARREAU_YASUDA && !has(&m, "jitter")) f->jitter = 0;
     if (f->jitter > 0.45) return fail_value(L, &m, "jitter", "must be in [0, 0.45]");
+    if (get_num(L, &m, "settle", R_NONNEG, &L->s->settle) < 0) return SCENE_BAD;
+    if (L->s->settle > 10) return fail_value(L, &m, "settle", "must be in [0, 10] s");
     return parse_blocks(L, &m);
 }
 
