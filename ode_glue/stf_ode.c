@@ -667,3 +667,21 @@ void stf_ode_body_fluid_force(const stf_ode *c, dBodyID body, double force[3], d
         }
     }
 }
+
+int stf_ode_settle(stf_ode *c, double dt, int steps, double tau)
+{
+    for (int k = 0; k < c->n; k++) { /* the poses as synced, the velocities zero */
+        sync_collider(c, &c->att[k]);
+        stf_fluid_hold_collider(c->fluid, c->att[k].collider);
+    }
+    double keep = exp(-dt / tau);
+    for (int s = 0; s < steps; s++) {
+        if (stf_fluid_step(c->fluid, dt) != 0) {
+            fail(c, "%s", stf_fluid_failure(c->fluid));
+            return -1;
+        }
+        stf_fluid_scale_velocities(c->fluid, keep);
+    }
+    stf_fluid_reset_clock(c->fluid);
+    return 0;
+}

@@ -158,7 +158,15 @@ const char *stf_ode_failure(const stf_ode *c);
  * stf_ode_step: its substeps' impulses over dt; zero for a body that is not attached. */
 void stf_ode_body_fluid_force(const stf_ode *c, dBodyID body, double force[3], double torque[3]);
 
+/* Lets the fluid settle around the attached solids held still (their velocities taken as
+ * zero, ODE not stepped) for `steps` fluid steps of dt, every velocity damped by
+ * exp(-dt / tau) after each, then sets the fluid's clock back to 0: the fluid starts at rest
+ * with the pressure that holds it up (scene key fluid.settle). 0, or -1 on a numerical
+ * failure (stf_ode_failure). */
+int stf_ode_settle(stf_ode *c, double dt, int steps, double tau);
+
 #ifdef __cplusplus
 }
 #endif
+
 #endif

@@ -1,6 +1,7 @@
 /* stf_ode_internal.h - the coupler's entry points for stf_sim.c (not installed). stf_sim
- * takes the same substeps as stf_ode_step (stf_ode_substeps) but drives its kinematic bodies
- * between them, so it steps them one by one. */
+ * takes the same substeps as stf_ode_step (stf_ode_substeps) but works between them (it
+ * drives its kinematic bodies, checks its bodies for a blow-up and may stop at an interrupt),
+ * so it steps them one by one. */
 #ifndef STF_ODE_INTERNAL_H
 #define STF_ODE_INTERNAL_H
 

@@ -182,6 +182,99 @@ static double vibration_peak(const stf_vibration *v)
     return 2.0 * 3.14159265358979323846 * v->frequency * (1.0 + v->jitter) * v->amplitude;
 }
 
+/* The bodies' blow-up detector: bounds no physical motion of the scene reaches.
+ *   speed: every speed in the scene comes from its initial speeds (bodies, fluid blocks),
+ *     the drive of vibrating solids (a wall moving at u throws what it hits at up to 2 u) and
+ *     the fall through gravity over at most the scene's extent L (the diagonal of the box
+ *     holding the container, the blocks and the bodies): v_scene = v0 + 2 u + sqrt(2 |g| L).
+ *     The bound is 10 v_scene (an order of magnitude of margin for energy the fluid stored
+ *     elastically and gives back at once), at least 0.01 h / dt (a scene at rest without
+ *     gravity: numerical drift is not a blow-up).
+ *   fluid force: weight and buoyancy, (M + rho_f V) |g|, plus the dynamic pressure of the
+ *     fluid at v_scene on the body's bounding cross-section A = pi r_bound^2 with the
+ *     coefficient 2 (a stagnation pressure rho v^2 / 2 over the front at four times the
+ *     area: above both the steady drag, C_d < 1 for Re > 10, and a sphere's water-entry slam,
+ *     whose peak force coefficient is about 0.9: Moghisi and Squire, "An experimental
+ *     investigation of the initial force of impact on a sphere striking a liquid surface",
+ *     J. Fluid Mech. 1981), plus Stokes' drag 3 pi mu d v_scene with the largest viscosity
+ *     the fluid shows at the shear rate v_scene / spacing (the Carreau-Yasuda law; the Clavet
+ *     fluid's solid-like response is a contact: covered by the next term); all times 10. At
+ *     least the force that changes the body's velocity by its speed bound in one step,
+ *     M v_bound / dt (what an impact on fluid that turned solid can do).
+ * Kinematic and static bodies are driven, not pushed: not checked (bounds 0). The shapes'
+ * radii are those the coupler's split uses (stf_collider_extent): the bounding radius r_bound
+ * here, the inradius for the rotation's part of the speed checked (s->spin_radius). 0, or -1
+ * when out of memory. */
+static int body_bounds(stf_sim *s)
+{
+    const stf_scene *sc = s->scene;
+    double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300}, v0 = 0, u = 0;
+    double *bound = calloc((size_t)sc->nbodies + 1, sizeof *bound);
+    if (!bound) return -1;
+    for (int k = 0; k < sc->nbodies; k++)
+        if (stf_collider_extent(&sc->bodies[k].shape, &s->spin_radius[k], &bound[k]) != 0)
+            s->spin_radius[k] = bound[k] = 0; /* not a bounded shape: not checked */
+#define STF_GROW(P, R)                                                                        \
+    for (int a_ = 0; a_ < 3; a_++) {                                                          \
+        lo[a_] = fmin(lo[a_], (P)[a_] - (R));                                                 \
+        hi[a_] = fmax(hi[a_], (P)[a_] + (R));                                                 \
+    }
+    for (int k = 0; k < sc->nblocks; k++) {
+        const stf_block *b = &sc->blocks[k];
+        STF_GROW(b->lo, 0.0);
+        STF_GROW(b->hi, 0.0);
+        v0 = fmax(v0, sqrt(b->velocity[0] * b->velocity[0] + b->velocity[1] * b->velocity[1] +
+                           b->velocity[2] * b->velocity[2]));
+    }
+    if (sc->container.present) {
+        const stf_container_def *c = &sc->container;
+        double a[3] = {c->position[0] - 0.5 * c->size[0] - c->wall,
+                       c->position[1] - 0.5 * c->size[1] - c->wall, c->position[2] - c->wall};
+        double b[3] = {c->position[0] + 0.5 * c->size[0] + c->wall,
+                       c->position[1] + 0.5 * c->size[1] + c->wall, c->position[2] + c->size[2]};
+        STF_GROW(a, 0.0);
+        STF_GROW(b, 0.0);
+        if (c->motion == STF_MOTION_KINEMATIC) u = fmax(u, vibration_peak(&c->vibration));
+    }
+    for (int k = 0; k < sc->nbodies; k++) {
+        const stf_body_def *b = &sc->bodies[k];
+        STF_GROW(b->position, bound[k]);
+        const double *w = b->angular_velocity;
+        v0 = fmax(v0, sqrt(b->velocity[0] * b->velocity[0] + b->velocity[1] * b->velocity[1] +
+                           b->velocity[2] * b->velocity[2]) +
+                          sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) * bound[k]);
+        if (b->motion == STF_MOTION_KINEMATIC) u = fmax(u, vibration_peak(&b->vibration));
+    }
+#undef STF_GROW
+    double L = 0, g2 = 0;
+    for (int a = 0; a < 3; a++) {
+        if (hi[a] > lo[a]) L += (hi[a] - lo[a]) * (hi[a] - lo[a]);
+        if (sc->fluid.effects & STF_EFFECT_GRAVITY)
+            g2 += sc->fluid.gravity[a] * sc->fluid.gravity[a];
+    }
+    L = sqrt(L);
+    double g = sqrt(g2), h = sc->fluid.h > 0 ? sc->fluid.h : 2 * sc->fluid.spacing;
+    double vs = v0 + 2 * u + sqrt(2 * g * L);
+    double vb = fmax(10 * vs, 0.01 * h / sc->dt), rho = sc->fluid.density;
+    double mu = 0;
+    if (sc->fluid.model == STF_MODEL_CARREAU_YASUDA)
+        mu = rho * fmax(stf_cy_viscosity(&sc->fluid.cy, vs / sc->fluid.spacing),
+                        fmax(sc->fluid.cy.mu0, sc->fluid.cy.mu_inf));
+    for (int k = 0; k < sc->nbodies; k++) {
+        if (sc->bodies[k].motion != STF_MOTION_DYNAMIC || !(bound[k] > 0)) continue;
+        dMass m;
+        dBodyGetMass(s->bodies[k], &m);
+        double r = bound[k], V = shape_volume(&sc->bodies[k].shape);
+        double A = 3.14159265358979323846 * r * r;
+        double F = (m.mass + rho * V) * g + 2 * rho * A * vs * vs +
+                   3 * 3.14159265358979323846 * mu * 2 * r * vs;
+        s->speed_bound[k] = vb;
+        s->force_bound[k] = fmax(10 * F, m.mass * vb / sc->dt);
+    }
+    free(bound);
+    return 0;
+}
+
 int stf_sim_create(const stf_scene *scene, stf_sim **out, char *err, size_t errlen)
 {
     ode_init_once();
@@ -195,7 +288,11 @@ int stf_sim_create(const stf_scene *scene, stf_sim **out, char *err, size_t errl
     s->freq = calloc((size_t)nb + 1, sizeof *s->freq);
     s->rng = calloc((size_t)nb + 1, sizeof *s->rng);
     s->fluid_impulse = calloc(3 * (size_t)nb + 1, sizeof *s->fluid_impulse);
-    if (!s->bodies || !s->phase || !s->freq || !s->rng || !s->fluid_impulse) {
+    s->speed_bound = calloc((size_t)nb + 1, sizeof *s->speed_bound);
+    s->force_bound = calloc((size_t)nb + 1, sizeof *s->force_bound);
+    s->spin_radius = calloc((size_t)nb + 1, sizeof *s->spin_radius);
+    if (!s->bodies || !s->phase || !s->freq || !s->rng || !s->fluid_impulse ||
+        !s->speed_bound || !s->force_bound || !s->spin_radius) {
         stf_sim_destroy(s);
         return snprintf(err, errlen, "out of memory"), 2;
     }
@@ -233,6 +330,24 @@ int stf_sim_create(const stf_scene *scene, stf_sim **out, char *err, size_t errl
     if (s->container && scene->container.motion == STF_MOTION_KINEMATIC)
         stf_ode_set_peak_speed(s->coupler, s->container, vibration_peak(&scene->container.vibration));
     s->removed = stf_ode_remove_overlaps(s->coupler);
+    if (body_bounds(s) != 0) {
+        snprintf(err, errlen, "out of memory");
+        rc = 2;
+        goto fail;
+    }
+    if (scene->settle > 0) {
+        /* fluid.settle: the fluid's blocks are a lattice without pressure, a fluid in free
+           fall, not at rest: before t = 0 it settles into the pressure that holds it up,
+           around the bodies held still, its motions damped with a time constant of an eighth
+           of the settling time (so they fall by e^-8) */
+        int n = (int)lround(scene->settle / scene->dt);
+        if (stf_ode_settle(s->coupler, scene->dt, n, scene->settle / 8) != 0) {
+            snprintf(err, errlen, "%s: fluid.settle: the settling failed: %s", scene->path,
+                     stf_fluid_failure(s->fluid));
+            rc = 3;
+            goto fail;
+        }
+    }
     s->ngeoms = dSpaceGetNumGeoms(s->space);
     s->geoms = calloc((size_t)s->ngeoms + 1, sizeof *s->geoms);
     if (!s->geoms) {
@@ -260,6 +375,9 @@ void stf_sim_destroy(stf_sim *s)
     free(s->freq);
     free(s->rng);
     free(s->fluid_impulse);
+    free(s->speed_bound);
+    free(s->force_bound);
+    free(s->spin_radius);
     free(s->geoms);
     free(s);
 }
@@ -288,9 +406,49 @@ static void vibrate(stf_sim *s, dBodyID body, int k, const stf_vibration *v, con
     dBodySetLinearVel(body, u * v->axis[0], u * v->axis[1], u * v->axis[2]);
 }
 
+/* The blow-up detector of the bodies (bounds: body_bounds): after substep j of m of the
+ * step, the fluid's force on each dynamic body (the coupling stage) and its speed after
+ * ODE's step (the rigid-body stage). -1 with s->failure set when one is beyond its bound. */
+static int check_bodies(stf_sim *s, int j, int m, double dt)
+{
+    const stf_scene *sc = s->scene;
+    for (int k = 0; k < sc->nbodies; k++) {
+        if (!(s->speed_bound[k] > 0)) continue;
+        double f[3], torque[3];
+        stf_ode_substep_force(s->coupler, s->bodies[k], f, torque);
+        const dReal *v = dBodyGetLinearVel(s->bodies[k]), *w = dBodyGetAngularVel(s->bodies[k]);
+        double F = sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
+        double V = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) +
+                   sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) * s->spin_radius[k];
+        const char *stage = NULL, *what = NULL;
+        double val = 0, lim = 0;
+        if (!(F <= s->force_bound[k])) /* false for NaN too */
+            stage = "coupling (the fluid's force on the body)", what = "fluid force", val = F,
+            lim = s->force_bound[k];
+        else if (!(V <= s->speed_bound[k]))
+            stage = "rigid-body step (ODE)", what = "speed", val = V, lim = s->speed_bound[k];
+        if (!stage) continue;
+        snprintf(s->failure, sizeof s->failure,
+                 "step %ld (t = %.6g s, substep %d of %d): body '%s' blew up after stage '%s': "
+                 "%s %.4g %s, beyond its physical bound %.4g %s", s->steps + 1,
+                 s->time + (j + 1) * dt, j + 1, m, sc->bodies[k].name, stage, what, val,
+                 what[0] == 's' ? "m/s" : "N", lim, what[0] == 's' ? "m/s" : "N");
+        return -1;
+    }
+    return 0;
+}
+
+const char *stf_sim_failure(const stf_sim *s)
+{
+    if (s->failure[0]) return s->failure; /* a body's */
+    const char *c = stf_ode_failure(s->coupler); /* the fluid's, or ODE's step */
+    return c[0] ? c : stf_fluid_failure(s->fluid);
+}
+
 int stf_sim_step(stf_sim *s)
 {
     const stf_scene *sc = s->scene;
+    if (s->failure[0]) return -1;
     /* the coupler's split, the same as stf_ode_step's (adaptive off for dt_control: fixed) */
     int m = stf_ode_substeps(s->coupler, sc->dt);
     double dt = m == 1 ? sc->dt : sc->dt / m;
@@ -306,6 +464,7 @@ int stf_sim_step(stf_sim *s)
             vibrate(s, s->container, sc->nbodies, &sc->container.vibration, s->container_base, t,
                     dt);
         if (stf_ode_substep(s->coupler, dt) != 0) return -1;
+        if (check_bodies(s, j, m, dt) != 0) return -1;
         for (int k = 0; k < sc->nbodies; k++) {
             double f[3], torque[3];
             stf_ode_substep_force(s->coupler, s->bodies[k], f, torque);
@@ -342,6 +501,13 @@ int stf_sim_step(stf_sim *s)
         s->substeps += taken;
         if (s->dt_min == 0 || lo < s->dt_min) s->dt_min = lo;
         if (hi > s->dt_max) s->dt_max = hi;
+        /* an interrupt between substeps: a step may hold many (m up to 64, each with the
+           Carreau-Yasuda solver's own CFL substeps) */
+        if (j + 1 < m && s->stop && s->stop(s->stop_arg)) {
+            s->substep_in_step = j + 1;
+            s->substep_count = m;
+            return 1;
+        }
     }
     s->steps++;
     s->time = s->steps * sc->dt;

@@ -34,6 +34,19 @@ typedef struct stf_sim {
        substeps): substeps and the *_total/_sum fields summed, the *_max fields the largest,
        the per-substep fields those of the last substep */
     stf_solver_stats step_stats;
+    /* Interrupts (`stf run`'s SIGINT/SIGTERM): when set, stop is asked between the substeps
+       of a step; a non-zero answer ends stf_sim_step there (it returns 1) */
+    int (*stop)(void *arg);
+    void *stop_arg;
+    int substep_in_step;    /* after a stopped step: substeps of it taken, of substep_count */
+    int substep_count;
+    /* The bodies' blow-up detector (stf_sim_step): per body, the largest speed (m/s) and
+       fluid force (N) any physical motion of the scene can reach, set at creation (see
+       body_bounds in stf_sim.c); 0: not checked (kinematic and static bodies) */
+    double *speed_bound, *force_bound;
+    double *spin_radius;    /* m, per body: the rotation's speed is counted at this radius (the
+                               shape's inradius) */
+    char failure[512];      /* why the last stf_sim_step failed, "" when it did not */
 } stf_sim;
 
 /* Builds the simulation. Returns 0; 2 with a message for a scene that cannot be built. */
@@ -41,8 +54,16 @@ int stf_sim_create(const stf_scene *scene, stf_sim **out, char *err, size_t errl
 void stf_sim_destroy(stf_sim *s);
 /* One step of the scene's dt: one substep, or (adaptive control, the default) m >= 1 equal
  * substeps of dt/m chosen from the velocity (CFL), the effective stiffness and the thin
- * solids: the split of stf_ode_step (stf_ode_substeps, stf_ode.h). Returns 0, or -1 on a numerical failure. */
+ * solids: the split of stf_ode_step (stf_ode_substeps, stf_ode.h), each substep checked by
+ * the bodies' blow-up detector. Returns 0; -1 on a numerical failure of the fluid or of a
+ * body (a dynamic body faster than its speed bound or pushed by more than its force bound:
+ * stf_sim_failure says which, at which step, substep and stage); 1 when s->stop asked to
+ * stop between two substeps (the step is then incomplete: s->steps and s->time are those of
+ * the last whole step, the fluid's and the bodies' state that of substep s->substep_in_step
+ * of s->substep_count). */
 int stf_sim_step(stf_sim *s);
+/* The message of the last failure (the fluid's or a body's), "" if none. */
+const char *stf_sim_failure(const stf_sim *s);
 /* A body's state: position (m), quaternion (w,x,y,z), velocity (m/s), angular velocity
  * (rad/s), and the fluid's force on it (N), its mean over the last step: the impulse of all
  * the step's substeps divided by the scene's dt. */

@@ -592,6 +592,24 @@ double stf_fluid_time(const stf_fluid *f) { return f->time; }
 long stf_fluid_steps(const stf_fluid *f) { return f->steps; }
 void stf_fluid_get_positions(const stf_fluid *f, double *x) { memcpy(x, f->x, (size_t)f->n * 3 * sizeof *x); }
 void stf_fluid_get_velocities(const stf_fluid *f, double *v) { memcpy(v, f->v, (size_t)f->n * 3 * sizeof *v); }
+void stf_fluid_scale_velocities(stf_fluid *f, double factor)
+{
+    for (int i = 0; i < 3 * f->n; i++) f->v[i] *= factor;
+}
+
+void stf_fluid_hold_collider(stf_fluid *f, int id)
+{
+    memset(f->colliders[id].vel, 0, sizeof f->colliders[id].vel);
+    memset(f->colliders[id].angvel, 0, sizeof f->colliders[id].angvel);
+}
+
+void stf_fluid_reset_clock(stf_fluid *f)
+{
+    f->time = 0;
+    f->steps = 0;
+    f->next_reorder = 0;
+}
+
 void stf_fluid_get_ids(const stf_fluid *f, int32_t *id) { memcpy(id, f->id, (size_t)f->n * sizeof *id); }
 
 void stf_fluid_get_history_stiffness(const stf_fluid *f, float *k)

@@ -479,7 +479,8 @@ static int parse_blocks(loader *L, const mapv *fluid)
 static int parse_fluid(loader *L, const mapv *top)
 {
     static const char *const keys[] = {"model", "spacing", "density", "h", "jitter", "blocks",
-                                       "relaxation", "iterations", "reference_spacing", NULL};
+                                       "relaxation", "iterations", "reference_spacing",
+                                       "settle", NULL};
     static const char *const relaxations[] = {"jacobi", "gauss_seidel", NULL};
     static const char *const models[] = {"clavet_stf", "carreau_yasuda", NULL};
     stf_fluid_def *f = &L->s->fluid;
@@ -513,6 +514,8 @@ static int parse_fluid(loader *L, const mapv *top)
     long it = f->iterations;
     if (get_int(L, &m, "iterations", 1, 64, &it) < 0) return SCENE_BAD;
     f->iterations = (int)it;
+    if (get_num(L, &m, "settle", R_NONNEG, &L->s->settle) < 0) return SCENE_BAD;
+    if (L->s->settle > 10) return fail_value(L, &m, "settle", "must be in [0, 10] s");
     return parse_blocks(L, &m);
 }
 

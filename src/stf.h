@@ -283,6 +283,12 @@ double stf_fluid_time(const stf_fluid *f);
 long stf_fluid_steps(const stf_fluid *f);
 void stf_fluid_get_positions(const stf_fluid *f, double *x);
 void stf_fluid_get_velocities(const stf_fluid *f, double *v);
+/* Multiplies every particle's velocity by factor (the settling before t = 0, stf_ode_settle). */
+void stf_fluid_scale_velocities(stf_fluid *f, double factor);
+/* Sets collider id's velocity and angular velocity to zero (its pose stays). */
+void stf_fluid_hold_collider(stf_fluid *f, int id);
+/* Sets the fluid's time and step count back to 0 (after the settling). */
+void stf_fluid_reset_clock(stf_fluid *f);
 /* Per particle: mean history stiffness of its springs (1/s^2), 0 without history. */
 void stf_fluid_get_history_stiffness(const stf_fluid *f, float *k);
 /* Per particle: persistent id (index at creation). */
@@ -408,6 +414,8 @@ typedef struct stf_scene {
     int nexpect;
     stf_expectation *expect;
     double *points;         /* storage of convex points of all bodies */
+    double settle;          /* s: the fluid settles this long around the bodies held still
+                               before t = 0 (fluid.settle, ode_glue/stf_sim.c); 0: none */
     int dt_fixed;           /* 1: every substep is dt; 0 (default): adaptive substeps of at
                                most dt (ode_glue/stf_sim.c, scenes/README.md) */
 } stf_scene;

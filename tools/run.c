@@ -31,6 +31,21 @@ enum { DEFAULT_CHECKPOINT_SECONDS = 60 };
 static volatile sig_atomic_t interrupted;
 static void on_signal(int sig) { interrupted = sig; }
 
+/* After SIGINT/SIGTERM the run finishes its frame (so that the file ends on a frame, with a
+ * checkpoint to resume from) if that takes at most INTERRUPT_GRACE seconds of wall-clock
+ * time; past that it stops at the next step, or between two substeps of a step
+ * (stf_sim.stop): a run whose frames or steps are long still ends within about a second. */
+static const double INTERRUPT_GRACE = 0.5;
+static double interrupt_seen; /* omp_get_wtime() when the loop first saw the signal */
+static int stop_now(void *arg)
+{
+    (void)arg;
+    if (!interrupted) return 0;
+    double now = omp_get_wtime();
+    if (interrupt_seen == 0) interrupt_seen = now;
+    return now - interrupt_seen > INTERRUPT_GRACE;
+}
+
 static int bad_flag(const char *msg, const char *arg)
 {
     fprintf(stderr, "stf: %s '%s'\n", msg, arg);
@@ -415,12 +430,23 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
     double t0 = omp_get_wtime(), last_checkpoint = t0;
     int cy = sc->fluid.model == STF_MODEL_CARREAU_YASUDA;
     solver_sums *u = &p.sums;
+    sim->stop = stop_now;
     for (long s = first; s <= steps && status == 0; s++) {
         int step_rc = stf_sim_step(sim);
         if (cy && step_rc == 0) add_solver_stats(sim, u);
+        if (step_rc == 1) { /* interrupted between two substeps: the step is incomplete */
+            fprintf(stderr, "\nstf: interrupted at t = %.4f s, inside step %ld (after %d of its "
+                    "%d substeps: the frame could not be finished within %.1f s); %s holds the "
+                    "run up to its last frame%s\n", sim->time, s, sim->substep_in_step,
+                    sim->substep_count, INTERRUPT_GRACE, out,
+                    a->checkpoint >= 0 ? " (stf run --resume continues from its last "
+                                         "checkpoint, if it has one)" : "");
+            status = 130;
+            break;
+        }
         if (step_rc != 0) {
             fprintf(stderr, "\nstf: numerical failure: %s; the last good frame is in %s\n",
-                    stf_fluid_failure(sim->fluid), out);
+                    stf_sim_failure(sim), out);
             status = 3;
             break;
         }
@@ -448,6 +474,18 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
                 fprintf(stderr, "\nstf: interrupted at t = %.4f s; %s holds the run so far%s\n",
                         sim->time, out,
                         s < steps && a->checkpoint >= 0 ? " (continue it with stf run --resume)" : "");
+                status = 130;
+            }
+        } else if (status == 0 && s < steps && stop_now(NULL)) {
+            /* interrupted and the frame is not finished within the grace: stop at this
+               step; a checkpoint here resumes bit for bit (frames stay at their steps) */
+            if (a->checkpoint >= 0 && write_checkpoint(h, sim, &p, omp_get_wtime() - t0) != 0)
+                status = 2;
+            else {
+                fprintf(stderr, "\nstf: interrupted at t = %.4f s, between two frames (the frame "
+                        "could not be finished within %.1f s); %s holds the run up to its last "
+                        "frame%s\n", sim->time, INTERRUPT_GRACE, out,
+                        a->checkpoint >= 0 ? " (continue it with stf run --resume)" : "");
                 status = 130;
             }
         }

@@ -1,0 +1,71 @@
+#!/usr/bin/env bash
+# Issue 19, point 2: buoyancy from the first step (Clavet fluid, fluid.settle). A sphere of
+# radius 3 and 6 spacings is held still in the middle of a tank of water at rest (5 mm
+# spacing, the tank 8 spacings wider and 10 taller than the sphere); the fluid settles
+# around it for 0.3 s before t = 0 (fluid.settle). The fluid's force on it over the first
+# rows (2 ms) must be Archimedes' rho V g within 5 %, rho the fluid's own density (its mass
+# over the volume it fills: the Clavet fluid at k = 1000 compresses by about 5 % under its
+# weight, and a body displaces the fluid that is there, not the nominal density). Without
+# the settling the same sphere feels -0.28 rho V g in its first step (the lattice starts
+# without pressure: fluid and body fall together).
+# Args: STF_BINARY PROJECT_DIR
+. "$(dirname "$0")/lib_cli.sh" cli_buoyancy "$@"
+stf=$STF
+export OMP_NUM_THREADS=1 OMP_WAIT_POLICY=passive
+for RS in 3 6; do
+    /usr/bin/python3 - "$RS" > ball_$RS.yaml <<'PY'
+import sys
+RS = float(sys.argv[1]); s = 0.005; R = RS * s
+W = round((2 * R + 8 * s) / s) * s; H = round((2 * R + 10 * s) / s) * s
+print(f"""name: buoyancy_{sys.argv[1]}
+duration: 0.004
+dt: 0.001
+frame_rate: 1000
+fluid:
+  spacing: {s}
+  density: 970
+  settle: 0.3
+  blocks:
+    - min: [{-W / 2}, {-W / 2}, 0.0]
+      max: [{W / 2}, {W / 2}, {H}]
+effects:
+  gravity: {{g: [0, 0, -9.81]}}
+  viscosity: {{sigma: 2.0}}
+  pressure: {{k: 1000, k_near: 200}}
+container:
+  size: [{W}, {W}, {H + 0.1}]
+  wall: 0.01
+  friction: 0.0
+  stick: false
+bodies:
+  - name: ball
+    shape: sphere
+    radius: {R}
+    motion: kinematic
+    position: [0, 0, {H / 2}]
+""")
+PY
+    "$stf" run ball_$RS.yaml -o ball_$RS.h5 --quiet 2>err_$RS.txt || fail "R = $RS spacings: the run failed: $(cat err_$RS.txt)"
+    /usr/bin/python3 - "$RS" <<'PY' || fail "R = $RS spacings: the first step's buoyancy is not Archimedes' within 5 %"
+import sys, h5py, numpy as np
+RS = sys.argv[1]; s = 0.005; R = float(RS) * s
+W = round((2 * R + 8 * s) / s) * s; V = 4 / 3 * np.pi * R ** 3
+f = h5py.File("ball_%s.h5" % RS, "r")
+z = f["Step#0/z"][:]                     # the settled fluid at t = 0
+layer = int(round((W / s) ** 2))         # particles in one layer
+level = np.sort(z)[-layer:].mean() + s / 2
+rho = len(z) * f.attrs["particle_mass"] / (W * W * level - V) if "particle_mass" in f.attrs else \
+      len(z) * 970 * s ** 3 / (W * W * level - V)
+F = f["bodies/ball/fluid_force"][1:3, 2]  # the first rows after t = 0 (2 ms apart)
+want = rho * 9.81 * V
+err = F / want - 1
+print("cli_buoyancy: R = %s spacings: fluid density %.1f kg/m^3, force %s N, rho V g %.4f N, "
+      "errors %s" % (RS, rho, np.round(F, 4), want, np.round(err, 4)))
+sys.exit(0 if np.all(abs(err) < 0.05) else 1)
+PY
+done
+if [ $fails -ne 0 ]; then
+    echo "cli_buoyancy: $fails failure(s)" >&2
+    exit 1
+fi
+echo "cli_buoyancy: ok"
