@@ -36,9 +36,10 @@
  * whose indices differ by at least 3 along some axis touch disjoint particles. The 27 colours
  * (cx mod 3, cy mod 3, cz mod 3) are swept in turn, the cells of a colour in parallel, each
  * cell's particles in index order, each particle's springs to higher indices in list order:
- * the same result for any thread count. A spring that reaches further than the next cells
- * (stretched past the cell size inside the sweep cannot happen: the cells are fixed at its
- * start) is left to a serial pass after the colours. */
+ * the same result for any thread count. The cells are binned from the positions the longest
+ * spring was measured at, so every spring joins neighbouring cells (a component of its
+ * length is below the cell size); the sweep moves particles but not their cells, so which
+ * particles a cell touches stays fixed. */
 #include "gauss_seidel.h"
 
 #include <math.h>
@@ -137,19 +138,8 @@ static int gs_bin(stf_gs *g, const double *x, int n, double cs)
     return 0;
 }
 
-/* 1 when the cells of particles i and j are neighbours (or the same) along every axis. */
-static int near_cells(const stf_gs *g, int i, int j)
-{
-    long a = g->cell_of[i], b = g->cell_of[j];
-    long ax = a % g->dim[0], ay = (a / g->dim[0]) % g->dim[1], az = a / (g->dim[0] * g->dim[1]);
-    long bx = b % g->dim[0], by = (b / g->dim[0]) % g->dim[1], bz = b / (g->dim[0] * g->dim[1]);
-    return labs(ax - bx) <= 1 && labs(ay - by) <= 1 && labs(az - bz) <= 1;
-}
-
-/* The spring constraints of particle i to partners j > i; near: 1 for the pairs whose cells
- * are neighbours (the coloured sweep), 0 for the others (the serial pass). */
-static void relax_springs_of(stf_fluid *f, stf_gs *g, int i, double dt, double khist_scale,
-                             int near)
+/* The spring constraints of particle i to its partners j > i. */
+static void relax_springs_of(stf_fluid *f, stf_gs *g, int i, double dt, double khist_scale)
 {
     const stf_springs *s = &f->springs;
     double *x = f->x;
@@ -161,7 +151,7 @@ static void relax_springs_of(stf_fluid *f, stf_gs *g, int i, double dt, double k
     double *lam = g->lambda + (size_t)i * s->stride;
     for (int k = 0; k < s->count[i]; k++) {
         int j = p[k];
-        if (j <= i || near_cells(g, i, j) != near) continue;
+        if (j <= i) continue; /* the pair's other row */
         double rx = x[3 * j] - x[3 * i], ry = x[3 * j + 1] - x[3 * i + 1], rz = x[3 * j + 2] - x[3 * i + 2];
         double r = sqrt(rx * rx + ry * ry + rz * rz);
         if (r <= 1e-12 * h) continue; /* coincident: no direction to pull along */
@@ -188,33 +178,6 @@ static void relax_springs_of(stf_fluid *f, stf_gs *g, int i, double dt, double k
     }
 }
 
-/* Sweeps the colours: fn on every particle of each cell, the cells of a colour in parallel,
- * then fn on every particle again with near = 0 for the pairs across non-neighbour cells. */
-static void sweep(stf_fluid *f, stf_gs *g, void (*fn)(stf_fluid *, stf_gs *, int, const void *, int),
-                  const void *arg)
-{
-    for (int col = 0; col < GS_COLOURS; col++) {
-        int c0 = g->colour_start[col], c1 = g->colour_start[col + 1];
-#pragma omp parallel for schedule(dynamic, 4)
-        for (int q = c0; q < c1; q++) {
-            int cell = g->colour_cells[q];
-            for (int32_t e = g->start[cell]; e < g->start[cell + 1]; e++)
-                fn(f, g, g->members[e], arg, 1);
-        }
-    }
-    for (int i = 0; i < f->n; i++) fn(f, g, i, arg, 0);
-}
-
-typedef struct spring_arg {
-    double dt, khist_scale;
-} spring_arg;
-
-static void spring_visit(stf_fluid *f, stf_gs *g, int i, const void *arg, int near)
-{
-    const spring_arg *a = arg;
-    relax_springs_of(f, g, i, a->dt, a->khist_scale, near);
-}
-
 int gs_springs(stf_fluid *f, double dt, double khist_scale)
 {
     stf_gs *g = f->gs;
@@ -237,7 +200,15 @@ int gs_springs(stf_fluid *f, double dt, double khist_scale)
     size_t slots = (size_t)s->n_alloc * (size_t)s->stride;
     if (grow((void **)&g->lambda, &g->cap_lambda, slots, sizeof *g->lambda)) return -1;
     memset(g->lambda, 0, slots * sizeof *g->lambda);
-    spring_arg arg = {dt, khist_scale};
-    for (int it = 0; it < f->def.iterations; it++) sweep(f, g, spring_visit, &arg);
+    for (int it = 0; it < f->def.iterations; it++)
+        for (int col = 0; col < GS_COLOURS; col++) {
+            int c0 = g->colour_start[col], c1 = g->colour_start[col + 1];
+#pragma omp parallel for schedule(dynamic, 4)
+            for (int q = c0; q < c1; q++) {
+                int cell = g->colour_cells[q];
+                for (int32_t e = g->start[cell]; e < g->start[cell + 1]; e++)
+                    relax_springs_of(f, g, g->members[e], dt, khist_scale);
+            }
+        }
     return 0;
 }
