@@ -28,15 +28,8 @@
 
 static char err[512];
 
-static uint64_t rng_state = 0x9e3779b97f4a7c15ull;
-static double urand(void) /* xorshift64*, uniform in [-1, 1) */
-{
-    rng_state ^= rng_state >> 12;
-    rng_state ^= rng_state << 25;
-    rng_state ^= rng_state >> 27;
-    uint64_t r = rng_state * 2685821657736338717ull;
-    return (double)(r >> 11) / 9007199254740992.0 * 2.0 - 1.0;
-}
+static unsigned long long rng_state = 0x9e3779b97f4a7c15ull;
+static double urand(void) { return test_urand(&rng_state); }
 
 static stf_fluid *make_fluid(const stf_fluid_def *d)
 {

@@ -24,15 +24,8 @@
 
 static char err[512];
 
-static uint64_t rng_state = 0x2545f4914f6cdd1dull;
-static double urand(void) /* xorshift64*, uniform in [-1, 1) */
-{
-    rng_state ^= rng_state >> 12;
-    rng_state ^= rng_state << 25;
-    rng_state ^= rng_state >> 27;
-    uint64_t r = rng_state * 2685821657736338717ull;
-    return (double)(r >> 11) / 9007199254740992.0 * 2.0 - 1.0;
-}
+static unsigned long long rng_state = 0x2545f4914f6cdd1dull;
+static double urand(void) { return test_urand(&rng_state); }
 
 static stf_fluid *make(const stf_fluid_def *d)
 {
