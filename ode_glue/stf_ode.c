@@ -614,8 +614,10 @@ int stf_ode_step(stf_ode *c, double dt)
         if (need > 1.0) m = need >= c->step.max_substeps ? c->step.max_substeps : (int)ceil(need);
     }
     double sub = m == 1 ? dt : dt / m;
-    memset(c->imp, 0, 3 * (size_t)c->n * sizeof *c->imp);
-    memset(c->aimp, 0, 3 * (size_t)c->n * sizeof *c->aimp);
+    if (c->n > 0) { /* a coupler with no bodies has no impulse arrays */
+        memset(c->imp, 0, 3 * (size_t)c->n * sizeof *c->imp);
+        memset(c->aimp, 0, 3 * (size_t)c->n * sizeof *c->aimp);
+    }
     c->step_dt = 0;
     for (int j = 0; j < m; j++)
         if (stf_ode_substep(c, sub) != 0) return -1;
