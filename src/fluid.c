@@ -113,6 +113,8 @@ static int check_def(const stf_fluid_def *d, char *err, size_t errlen)
     if (d->effects & STF_EFFECT_HISTORY) {
         if (!(d->effects & STF_EFFECT_SPRINGS)) FAIL("history: needs the springs effect");
         if (!(d->q > 0 && d->q < 1)) FAIL("q: must be in (0,1) (got %g)", d->q);
+        if (d->history_velocity != STF_HISTORY_PARTICLE && d->history_velocity != STF_HISTORY_SMOOTHED)
+            FAIL("history_velocity: must be particle or smoothed (got %d)", d->history_velocity);
         if (d->history_mode != STF_HISTORY_WINDOW && d->history_mode != STF_HISTORY_FULL &&
             d->history_mode != STF_HISTORY_SOE)
             FAIL("history_mode: must be window, full or soe (got %d)", d->history_mode);
@@ -492,6 +494,28 @@ static int start_history(stf_fluid *f, double dt)
     return history_init(&f->hist, f->def.q, window, f->cap > 0 ? f->cap : 1);
 }
 
+void fluid_smoothed_velocity(const stf_fluid *f, double *out)
+{
+    int n = f->n;
+    const double *x = f->x, *v = f->v;
+    double inv_h = 1.0 / f->h;
+#pragma omp parallel for schedule(dynamic, 256)
+    for (int i = 0; i < n; i++) {
+        const int32_t *nb = grid_row(&f->grid, i);
+        double w0 = 1.0, sx = v[3 * i], sy = v[3 * i + 1], sz = v[3 * i + 2];
+        for (int k = 0; k < f->grid.count[i]; k++) {
+            int j = nb[k];
+            double rx = x[3 * j] - x[3 * i], ry = x[3 * j + 1] - x[3 * i + 1], rz = x[3 * j + 2] - x[3 * i + 2];
+            double q = sqrt(rx * rx + ry * ry + rz * rz) * inv_h;
+            if (q >= 1.0) continue;
+            double w = (1.0 - q) * (1.0 - q);
+            w0 += w;
+            sx += w * v[3 * j], sy += w * v[3 * j + 1], sz += w * v[3 * j + 2];
+        }
+        out[3 * i] = sx / w0, out[3 * i + 1] = sy / w0, out[3 * i + 2] = sz / w0;
+    }
+}
+
 static int reorder_by_cell(stf_fluid *f)
 {
     /* The grid's bucket order keeps each cell's particles together in memory. */
@@ -538,7 +562,12 @@ int stf_fluid_step(stf_fluid *f, double dt)
     });
     if (has(f, STF_EFFECT_HISTORY) && f->def.k_hist > 0) { /* k_hist = 0: D is never read */
         TIMED(STAGE_HISTORY, {
-            if (history_push(&f->hist, f->v, n) != 0) goto oom;
+            const double *vh = f->v;
+            if (f->def.history_velocity == STF_HISTORY_SMOOTHED) {
+                fluid_smoothed_velocity(f, f->dx);
+                vh = f->dx;
+            }
+            if (history_push(&f->hist, vh, n) != 0) goto oom;
             history_derivative(&f->hist, n);
         });
     }
@@ -712,7 +741,7 @@ int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
         "tension: %s\nrest_density: %.9g  # kernel sum\nrest_near_density: %.9g  # kernel sum\n"
         "k_min: %.9g  # 1/s^2\nyield_ratio: %.9g\nplasticity: %.9g  # 1/s\n"
         "relaxation: %s\niterations: %d\nspring_damping: %.9g  # s\nq: %.9g\n"
-        "history_mode: %s\nhistory_steps: %d  # at the first step (with memory: memory / dt)\n"
+        "history_mode: %s\nhistory_velocity: %s\nhistory_steps: %d  # at the first step (with memory: memory / dt)\n"
         "memory: %.9g  # s (0: history_steps as given)\nk_hist: %.9g  # 1/s^2 per m/s^q\n"
         "reference_spacing: %.9g  # m\nk_onset: %.9g  # 1/s^2\n"
         "stick: %.9g  # 1/s\n",
@@ -724,6 +753,7 @@ int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
         d->history_mode == STF_HISTORY_FULL  ? "full"
         : d->history_mode == STF_HISTORY_SOE ? "soe"
                                              : "window",
+        d->history_velocity == STF_HISTORY_SMOOTHED ? "smoothed" : "particle",
         stf_fluid_history_steps(f), d->memory,
         d->k_hist, d->reference_spacing, d->k_onset, d->stick);
     if (d->history_mode == STF_HISTORY_SOE && w >= 0 && (size_t)w < len)

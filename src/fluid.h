@@ -71,6 +71,13 @@ void pressure_wall_table(stf_fluid *f);                       /* pressure.c */
 void collide_all(stf_fluid *f, double dt);                   /* collider.c */
 void boundary_stick(stf_fluid *f, double dt);                /* boundary.c */
 
+/* history.velocity smoothed: the velocity field at each particle as the density kernel sees
+ * it, the Shepard average sum_j w_ij v_j / sum_j w_ij over the particle and its neighbours
+ * (the grid's current rows), w = (1 - r/h)^2, 1 for the particle itself. A linear field is
+ * kept where the neighbourhood is symmetric (the bulk); a particle's own grid-scale jitter
+ * is averaged out. Into out (3n). */
+void fluid_smoothed_velocity(const stf_fluid *f, double *out);
+
 /* Checks every particle after a stage named effect; on a blow-up or NaN writes the failure
  * message and returns -1. */
 int fluid_check(stf_fluid *f, const char *effect);

@@ -522,6 +522,8 @@ static int parse_fluid(loader *L, const mapv *top)
 static int parse_history(loader *L, const mapv *h)
 {
     static const char *const modes[] = {"window", "full", "soe", NULL};
+    static const char *const velocities[] = {"particle", "smoothed", NULL}; /* enum order */
+    int vel = 0;
     stf_fluid_def *f = &L->s->fluid;
     long d = 1, terms = 16;
     int mode = 0, rd, rm;
@@ -538,6 +540,8 @@ static int parse_history(loader *L, const mapv *h)
     if (get_num(L, h, "k_onset", R_NONNEG, &f->k_onset) < 0) return SCENE_BAD;
     if (get_choice(L, h, "mode", modes, &mode) < 0) return SCENE_BAD;
     if (has(h, "mode")) f->history_mode = mode; /* the order of enum stf_history_mode */
+    if (get_choice(L, h, "velocity", velocities, &vel) < 0) return SCENE_BAD;
+    if (has(h, "velocity")) f->history_velocity = vel;
     int rt = get_int(L, h, "terms", 1, 64, &terms);
     if (rt < 0) return SCENE_BAD;
     if (rt && f->history_mode != STF_HISTORY_SOE)
@@ -628,7 +632,7 @@ static const char *const gravity_keys[] = {"g", NULL};
 static const char *const viscosity_keys[] = {"sigma", "beta", NULL};
 static const char *const pressure_keys[] = {"k", "k_near", "rest_density", "tension", NULL};
 static const char *const springs_keys[] = {"k_min", "yield_ratio", "plasticity", "damping", NULL};
-static const char *const history_keys[] = {"q", "d", "memory", "k_hist", "mode", "reference_spacing", "terms", "k_onset", NULL};
+static const char *const history_keys[] = {"q", "d", "memory", "k_hist", "mode", "reference_spacing", "terms", "k_onset", "velocity", NULL};
 static const char *const stick_keys[] = {"stick", NULL};
 static const char *const cy_keys[] = {"mu0", "mu_inf", "K", "alpha", "n", "eta",
                                       "min_pressure_iterations", "max_pressure_iterations",

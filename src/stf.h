@@ -45,6 +45,17 @@ enum stf_history_mode {
                                exponentials: O(terms) time and memory per particle */
 };
 
+/* Which velocity the fractional derivative (Eq. 3) remembers (scene key history.velocity). */
+enum stf_history_velocity {
+    STF_HISTORY_PARTICLE = 0, /* each particle's own velocity, as the paper writes Eq. 3 */
+    STF_HISTORY_SMOOTHED = 1, /* ours: the velocity field at the particle, the Shepard average
+                                 of its neighbours' velocities with the density kernel
+                                 (1 - r/h)^2. A linear flow is kept, so a strain rate
+                                 measures the same; the grid-scale jitter of a relaxation at
+                                 rest (a few cm/s at 1 ms) is averaged out, so a resting pool
+                                 does not keep itself jammed (src/fluid.c) */
+};
+
 /* Fluid models (stf_fluid_def.model, scene key fluid.model). */
 enum stf_model {
     STF_MODEL_CLAVET_STF = 0,     /* Clavet SPH + history springs (first paper) */
@@ -174,6 +185,7 @@ typedef struct stf_fluid_def {
                               nothing; above it only the excess counts:
                               k = k_min + max(0, kh - k_onset). 0: Eq. 6 as written */
     int history_mode;      /* enum stf_history_mode */
+    int history_velocity;  /* enum stf_history_velocity (default particle: Eq. 3 as written) */
     int terms;             /* soe mode: number of exponentials K, 1..64 (default 16) */
     /* boundary treatment (section 3.3) */
     double stick;          /* 1/s: tangential velocity at a wall decays at the rate
