@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # cli_convergence.sh - `stf bench convergence` end to end, real runs (a few seconds each):
 #  - the fluid drop at a 1.5 cm spacing for 0.3 s (the impact at 0.18 s), no -o: exit 0 or 1
-#    (the verdict, never 2 or 3); the memory-in-steps warning (the scene gives d = 150); the
+#    (the verdict, never 2 or 3); the memory-in-steps warning (given d = 150 by --set: the
+#    scene's memory is in seconds); the
 #    default directory convergence-fluid_drop holds run0..run3.h5 and convergence.csv, whose
 #    columns are the four runs (dt, dt/2, dt/4, 1.5x_spacing) and whose rows are every fluid
 #    metric of src/metrics.c's list (read from the source, not a copy), each with a verdict,
@@ -22,7 +23,8 @@
 export OMP_NUM_THREADS=1
 DROP="$PROJ/scenes/fluid_drop.yaml"
 
-"$STF" bench convergence "$DROP" --set fluid.spacing=0.015 --duration 0.3 --threads 1 >drop.out 2>drop.err
+"$STF" bench convergence "$DROP" --set fluid.spacing=0.015 --set effects.history.d=150 --duration 0.3 \
+    --threads 1 >drop.out 2>drop.err
 rc=$?
 [ $rc -eq 0 ] || [ $rc -eq 1 ] || { fail "bench convergence exited $rc (want 0 or 1)"; cat drop.err >&2; }
 grep -q "^memory given in steps (d = 150): dt/2 and dt/4 change the memory in seconds; give effects.history.memory" \

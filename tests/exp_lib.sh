@@ -14,11 +14,15 @@ run() {
 }
 
 # run_d_series SCENE [--set ...]: the paper's series, into none (no history, no boundary
-# stick) and d50, d150, d250 (history windows of that many steps).
+# stick) and d50, d150, d250: the paper's d = 50, 150, 250 steps of its 33 ms step, given as
+# the history memory in seconds (1.65, 4.95, 8.25 s; d in steps of our 1 ms step would be
+# windows 33 times shorter than the paper's).
 run_d_series() {
     local scene=$1; shift
     run none "$scene" "$@" --unset effects.history --unset effects.boundary_stick
-    for d in 50 150 250; do run "d$d" "$scene" "$@" --set effects.history.d=$d; done
+    run d50 "$scene" "$@" --set effects.history.memory=1.65
+    run d150 "$scene" "$@" --set effects.history.memory=4.95
+    run d250 "$scene" "$@" --set effects.history.memory=8.25
 }
 
 # metric TAG KEY: prints the metric (a dotted path into the report JSON: fluid.solid_duration,
