@@ -23,7 +23,9 @@ done
 
 # Fig. 11: sliding off a 30 degree ramp
 run slide_no_history scenes/fluid_slide_no_history.yaml
-for d in 50 150 250; do run slide_d$d scenes/fluid_slide.yaml --set effects.history.d=$d; done
+run slide_d50 scenes/fluid_slide.yaml --set effects.history.memory=1.65
+run slide_d150 scenes/fluid_slide.yaml --set effects.history.memory=4.95
+run slide_d250 scenes/fluid_slide.yaml --set effects.history.memory=8.25
 for t in slide_no_history slide_d150; do
     "$stf" render "$out/$t.h5" --color khist --max 30000 --frames 8,20,40,150 --width 320 --height 200 \
         --camera 0.1,-0.95,0.55 --look 0.05,0,0.1 --montage "$pic/fluid_$t.png"
