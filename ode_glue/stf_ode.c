@@ -685,5 +685,6 @@ int stf_ode_settle(stf_ode *c, double dt, int steps, double tau)
         stf_fluid_scale_velocities(c->fluid, keep);
     }
     stf_fluid_reset_clock(c->fluid);
+    stf_fluid_forget_history(c->fluid); /* the start-up's motion is not the material's past */
     return 0;
 }

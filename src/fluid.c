@@ -28,6 +28,7 @@ stf_fluid_def stf_default_fluid_def(void)
     d.k_min = 100.0;
     d.yield_ratio = 0.0;
     d.plasticity = 2.0;
+    d.liquid_plasticity = -1; /* as plasticity */
     d.relaxation = STF_RELAX_JACOBI;
     d.iterations = 1;
     d.q = 0.5;
@@ -102,6 +103,8 @@ static int check_def(const stf_fluid_def *d, char *err, size_t errlen)
         FAIL("yield_ratio: must be in [0,1] (got %g)", d->yield_ratio);
     if (!(d->plasticity >= 0 && isfinite(d->plasticity)))
         FAIL("plasticity: must be >= 0 (got %g)", d->plasticity);
+    if (!isfinite(d->liquid_plasticity))
+        FAIL("liquid_plasticity: must be finite, >= 0 (< 0: plasticity) (got %g)", d->liquid_plasticity);
     if (d->relaxation != STF_RELAX_JACOBI && d->relaxation != STF_RELAX_GAUSS_SEIDEL)
         FAIL("relaxation: must be jacobi or gauss_seidel (got %d)", d->relaxation);
     if (!(d->spring_damping >= 0 && d->spring_damping <= 1))
@@ -639,6 +642,12 @@ void stf_fluid_reset_clock(stf_fluid *f)
     f->next_reorder = 0;
 }
 
+void stf_fluid_forget_history(stf_fluid *f)
+{
+    if (f->hist.n_alloc || f->hist.w) history_free(&f->hist); /* re-made at the next step */
+    if (f->khist_mean) memset(f->khist_mean, 0, (size_t)f->cap * sizeof *f->khist_mean);
+}
+
 void stf_fluid_get_ids(const stf_fluid *f, int32_t *id) { memcpy(id, f->id, (size_t)f->n * sizeof *id); }
 
 void stf_fluid_get_history_stiffness(const stf_fluid *f, float *k)
@@ -739,7 +748,7 @@ int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
         "particle_mass: %.9g  # kg\njitter: %.9g  # spacings\ngravity: [%.9g, %.9g, %.9g]  # m/s^2\n"
         "sigma: %.9g  # 1/s\nbeta: %.9g  # 1/m\nk: %.9g  # m/s^2\nk_near: %.9g  # m/s^2\n"
         "tension: %s\nrest_density: %.9g  # kernel sum\nrest_near_density: %.9g  # kernel sum\n"
-        "k_min: %.9g  # 1/s^2\nyield_ratio: %.9g\nplasticity: %.9g  # 1/s\n"
+        "k_min: %.9g  # 1/s^2\nyield_ratio: %.9g\nplasticity: %.9g  # 1/s\nliquid_plasticity: %.9g  # 1/s\n"
         "relaxation: %s\niterations: %d\nspring_damping: %.9g  # s\nq: %.9g\n"
         "history_mode: %s\nhistory_velocity: %s\nhistory_steps: %d  # at the first step (with memory: memory / dt)\n"
         "memory: %.9g  # s (0: history_steps as given)\nk_hist: %.9g  # 1/s^2 per m/s^q\n"
@@ -748,6 +757,7 @@ int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
         effects, d->spacing, d->material_spacing, f->h, d->density, f->mass, d->jitter, d->gravity[0], d->gravity[1],
         d->gravity[2], d->sigma, d->beta, d->k, d->k_near, d->tension ? "true" : "false",
         f->rest_density, f->rest_near, d->k_min, d->yield_ratio, d->plasticity,
+        d->liquid_plasticity >= 0 ? d->liquid_plasticity : d->plasticity,
         d->relaxation == STF_RELAX_GAUSS_SEIDEL ? "gauss_seidel" : "jacobi", d->iterations,
         d->spring_damping, d->q,
         d->history_mode == STF_HISTORY_FULL  ? "full"

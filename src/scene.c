@@ -618,6 +618,7 @@ static int parse_effect_params(loader *L, int e, const mapv *p)
         if (get_num(L, p, "yield_ratio", R_UNIT, &f->yield_ratio) < 0) return SCENE_BAD;
         if (get_num(L, p, "damping", R_NONNEG, &f->spring_damping) < 0) return SCENE_BAD;
         if (f->spring_damping > 1) return fail_value(L, p, "damping", "must be <= 1 s");
+        if (get_num(L, p, "liquid_plasticity", R_NONNEG, &f->liquid_plasticity) < 0) return SCENE_BAD;
         return get_num(L, p, "plasticity", R_NONNEG, &f->plasticity) < 0 ? SCENE_BAD : 0;
     case 4:
         return parse_history(L, p);
@@ -631,7 +632,7 @@ static int parse_effect_params(loader *L, int e, const mapv *p)
 static const char *const gravity_keys[] = {"g", NULL};
 static const char *const viscosity_keys[] = {"sigma", "beta", NULL};
 static const char *const pressure_keys[] = {"k", "k_near", "rest_density", "tension", NULL};
-static const char *const springs_keys[] = {"k_min", "yield_ratio", "plasticity", "damping", NULL};
+static const char *const springs_keys[] = {"k_min", "yield_ratio", "plasticity", "liquid_plasticity", "damping", NULL};
 static const char *const history_keys[] = {"q", "d", "memory", "k_hist", "mode", "reference_spacing", "terms", "k_onset", "velocity", NULL};
 static const char *const stick_keys[] = {"stick", NULL};
 static const char *const cy_keys[] = {"mu0", "mu_inf", "K", "alpha", "n", "eta",

@@ -175,6 +175,7 @@ spring_ops(const stf_fluid *f, int i, const int32_t *js, const double *L0s, int 
     double h = f->h, inv_h = 1.0 / h, tiny = 1e-12 * h, k_min = f->def.k_min, onset = f->def.k_onset;
     double dt2 = dt * dt;
     double gamma = f->def.yield_ratio, alpha = f->def.plasticity, dtn = f->dt_now;
+    double alpha_liq = f->def.liquid_plasticity >= 0 ? f->def.liquid_plasticity : alpha;
     const double *x = f->x, *D = f->hist.D;
     double xi = x[3 * i], yi = x[3 * i + 1], zi = x[3 * i + 2];
     double Dxi = 0, Dyi = 0, Dzi = 0;
@@ -183,19 +184,20 @@ spring_ops(const stf_fluid *f, int i, const int32_t *js, const double *L0s, int 
         int j = js[e];
         double rx = x[3 * j] - xi, ry = x[3 * j + 1] - yi, rz = x[3 * j + 2] - zi;
         double r = sqrt(rx * rx + ry * ry + rz * rz);
-        double L, brk; /* Alg. 4: springs longer than h break */
-        if (fresh) {
-            L = r;
-            brk = (double)(r >= h);
-        } else {
-            L = plastic_rest(L0s[e], r, gamma, alpha, dtn);
-            brk = (double)(L > h);
-        }
         double kh = 0.0;
         if (hist) {
             double ex = Dxi - D[3 * j], ey = Dyi - D[3 * j + 1], ez = Dzi - D[3 * j + 2];
             kh = khist_scale * sqrt(ex * ex + ey * ey + ez * ez); /* Eq. 6 */
             kh = kh > onset ? kh - onset : 0.0; /* thickening starts at the onset */
+        }
+        double L, brk; /* Alg. 4: springs longer than h break */
+        if (fresh) {
+            L = r;
+            brk = (double)(r >= h);
+        } else {
+            /* a spring below the onset creeps at the liquid's rate (liquid_plasticity) */
+            L = plastic_rest(L0s[e], r, gamma, kh > 0 ? alpha : alpha_liq, dtn);
+            brk = (double)(L > h);
         }
         double kij = k_min + kh;
         double c = dt2 * kij * (1.0 - L * inv_h);

@@ -165,6 +165,12 @@ typedef struct stf_fluid_def {
     double k_min;          /* spring stiffness, 1/s^2 (>= 0) */
     double yield_ratio;    /* tolerated deformation / rest length, dimensionless (>= 0) */
     double plasticity;     /* rest-length creep rate alpha, 1/s (>= 0) */
+    double liquid_plasticity; /* 1/s (>= 0; < 0: plasticity): ours, the creep rate of a spring
+                              whose history stiffness is below the onset (every spring without
+                              history). A liquid's springs keep almost no shape; a spring that
+                              stiffens then freezes the shape it has, instead of snapping back
+                              to a rest length its liquid past left behind, which put the
+                              resting jammed pool in a self-sustained jitter (src/springs.c) */
     int relaxation;        /* enum stf_relaxation: how the springs' displacements are applied */
     double spring_damping; /* s (>= 0; scene key springs.damping): gauss_seidel only, a
                               dashpot beside each spring with the relaxation time tau
@@ -301,6 +307,10 @@ void stf_fluid_scale_velocities(stf_fluid *f, double factor);
 void stf_fluid_hold_collider(stf_fluid *f, int id);
 /* Sets the fluid's time and step count back to 0 (after the settling). */
 void stf_fluid_reset_clock(stf_fluid *f);
+/* Forgets the history (Eq. 3's past velocities and every spring's history stiffness): the
+ * fluid's past starts now, as for a fluid long at rest. After the settling, whose start-up
+ * motion is not the material's past. The window starts again at the next step. */
+void stf_fluid_forget_history(stf_fluid *f);
 /* Per particle: mean history stiffness of its springs (1/s^2), 0 without history. */
 void stf_fluid_get_history_stiffness(const stf_fluid *f, float *k);
 /* Per particle: persistent id (index at creation). */

@@ -12,9 +12,12 @@
  *  stiff and stable  the same block at that stiffness stays finite and gains no kinetic
  *                energy, where the Jacobi form needs substeps.
  *  threads       1 and 2 threads give the same state bit for bit (the colours).
+ *  liquid creep  a spring below the onset creeps at liquid_plasticity, one above it at
+ *                plasticity: Clavet's L + dt alpha (r - L) exactly, with each rate.
  */
 #define _POSIX_C_SOURCE 200809L
 #include "stf.h"
+#include "fluid.h" /* the springs' rest lengths (liquid_creep) */
 #include "test_util.h"
 
 #include <omp.h>
@@ -167,8 +170,47 @@ static uint64_t run_hash(int threads)
     return h;
 }
 
+/* Two particles moving apart at u: the spring made at step 1 at length Lr is at r2 when
+ * step 2 measures it, and its rest length becomes Lr + dt alpha (r2 - Lr) (yield_ratio 0),
+ * alpha the liquid rate below the onset (here: without history, or with an onset no pair
+ * reaches) and the material's plasticity above it. */
+static void liquid_creep(int history, double onset, double want_alpha)
+{
+    stf_fluid_def d = stf_default_fluid_def();
+    d.effects = STF_EFFECT_SPRINGS | (history ? STF_EFFECT_HISTORY : 0u);
+    d.relaxation = STF_RELAX_GAUSS_SEIDEL;
+    d.k_min = 1e-6; /* the pair's motion is the prediction's alone */
+    d.yield_ratio = 0;
+    d.plasticity = 2.0;
+    d.liquid_plasticity = 50.0;
+    d.k_hist = history ? 1e-3 : 0; /* a stiffness far below the positions' round-off */
+    d.k_onset = onset;
+    d.memory = 0.01;
+    stf_fluid *f = make(&d);
+    if (!f) return;
+    double h = 2 * d.spacing, dt = 1e-3, u = 0.01;
+    double a[3] = {0, 0, 0}, b[3] = {0.6 * h, 0, 0}, va[3] = {-u, 0, 0}, vb[3] = {u, 0, 0};
+    stf_fluid_add_particle(f, a, va);
+    stf_fluid_add_particle(f, b, vb);
+    CHECK(stf_fluid_step(f, dt) == 0, "step 1: %s", stf_fluid_failure(f));
+    double x[6], v[6];
+    stf_fluid_get_positions(f, x);
+    stf_fluid_get_velocities(f, v);
+    double Lr = f->springs.rest[0], r2 = (x[3] - x[0]) + (v[3] - v[0]) * dt;
+    CHECK(stf_fluid_step(f, dt) == 0, "step 2: %s", stf_fluid_failure(f));
+    double want = Lr + dt * want_alpha * (r2 - Lr), got = f->springs.rest[0];
+    CHECK(fabs(got - want) <= 1e-15 * h, "history %d, onset %g: rest %.17g, want %.17g (alpha %g)",
+          history, onset, got, want, want_alpha);
+    printf("liquid creep: history %d, onset %g: rest length %.9g -> %.9g m (alpha %g 1/s)\n",
+           history, onset, Lr, got, want_alpha);
+    stf_fluid_destroy(f);
+}
+
 int main(void)
 {
+    liquid_creep(0, 0, 50.0);    /* no history: every spring is liquid */
+    liquid_creep(1, 1e30, 50.0); /* below the onset */
+    liquid_creep(1, 0, 2.0);     /* above it (Eq. 6 as written: any history stiffness) */
     exact_pair(100.0, 0);
     exact_pair(1e8, 0);
     exact_pair(1e5, 0.002);
