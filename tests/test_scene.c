@@ -262,7 +262,7 @@ static void test_errors(void)
                  "t.yaml:10:1: colour: unknown key (allowed: name, duration, dt", "expect)");
     EXPECT_ERROR(
         MIN_HEAD "effects:\n  springs: {k_mn: 1}\n",
-        "t.yaml:8:13: effects.springs.k_mn: unknown key (allowed: k_min, yield_ratio, plasticity, damping)",
+        "t.yaml:8:13: effects.springs.k_mn: unknown key (allowed: k_min, yield_ratio, plasticity, liquid_plasticity, damping)",
         NULL);
     EXPECT_ERROR("duration: 1\nfluid:\n  spacing: -0.01\n",
                  "t.yaml:3:12: fluid.spacing: must be > 0", NULL);
