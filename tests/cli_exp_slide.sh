@@ -4,12 +4,12 @@
 # 33 ms: 1.65, 4.95, 8.25 s of memory). Claims:
 #  - at 1.5 cm spacing (251 particles) for 14 s: the time it keeps its solid state
 #    (fluid.solid_duration) grows with d: none < 50 < 150 < 250, each step by >= 2 frames
-#    (measured 0, 7.27, 9.53, 10.9 s: the ball rolls off the ramp as a solid, comes to rest
+#    (measured 0.05, 6.27, 9.42, 10.36 s: the ball rolls off the ramp as a solid, comes to rest
 #    on the floor and softens seconds later, once the windows have dropped the impacts; 14 s
 #    holds the softening of all three);
 #  - at 1 cm (895 particles, the scene's own spacing and memory): with history it jumps after
 #    the first contact with the ramp (the centre of mass's rise in the first 0.3 s, twice as
-#    high as and 1.5 mm higher than without; measured 6.8 mm and 0) and slides as a solid (it
+#    high as and 1.5 mm higher than without; measured 10.1 mm and 0) and slides as a solid (it
 #    keeps its shape >= 0.4 s of the 2 s run); without history it smears out (< 0.2 s). The
 #    paper gives the jump to its longest memory; its windows, 1.65 s and longer, are longer
 #    than the jump, so Eq. 3 sums the same samples for every d and the jump is the same.
