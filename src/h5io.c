@@ -77,6 +77,8 @@ struct stf_h5 {
     char *path;
     frame_info *frames;
     int nframes, cap;
+    int checkpoints; /* written through this handle */
+    int ckpt_live;   /* 1 while the file holds one (written, not deleted since) */
     char err[256];
 };
 
@@ -557,6 +559,68 @@ static void free_writer(stf_h5 *h)
     free(h);
 }
 
+/* Compaction (stf_h5_close). The checkpoints' space is not reused: the file is closed and
+ * reopened between them (flush_and_bound), and the earliest file format (kept so that a
+ * killed writer's file opens without h5clear) forgets freed space at a close. A 10 s bowling
+ * run at 1.5 cm left a 3.7 GB file holding 184 MB of frames. So a file whose checkpoints are
+ * gone is copied, object by object, into a new file that then replaces it. */
+static herr_t compact_link(hid_t g, const char *name, const H5L_info_t *info, void *op)
+{
+    (void)info;
+    return H5Ocopy(g, name, *(hid_t *)op, name, H5P_DEFAULT, H5P_DEFAULT) < 0 ? -1 : 0;
+}
+
+static herr_t compact_attr(hid_t loc, const char *name, const H5A_info_t *info, void *op)
+{
+    (void)info;
+    hid_t a = H5Aopen(loc, name, H5P_DEFAULT);
+    hid_t t = a < 0 ? -1 : H5Aget_type(a);
+    hid_t s = a < 0 ? -1 : H5Aget_space(a);
+    hssize_t np = s < 0 ? -1 : H5Sget_simple_extent_npoints(s);
+    size_t size = t < 0 ? 0 : H5Tget_size(t);
+    herr_t rc = -1;
+    void *buf = np >= 0 && size > 0 ? calloc((size_t)(np > 0 ? np : 1), size) : NULL;
+    if (buf && H5Aread(a, t, buf) >= 0) {
+        hid_t b = H5Acreate2(*(hid_t *)op, name, t, s, H5P_DEFAULT, H5P_DEFAULT);
+        if (b >= 0 && H5Awrite(b, t, buf) >= 0) rc = 0;
+        close_id(b);
+        if (H5Tis_variable_str(t) > 0 || H5Tget_class(t) == H5T_VLEN)
+            H5Dvlen_reclaim(t, s, H5P_DEFAULT, buf);
+    }
+    free(buf);
+    close_id(s);
+    close_id(t);
+    close_id(a);
+    return rc;
+}
+
+int stf_h5_compact(const char *path, char *err, size_t errlen)
+{
+    size_t n = strlen(path);
+    char *tmp = malloc(n + 9);
+    if (!tmp) {
+        fmt_err(err, errlen, "%s: out of memory", path);
+        return -1;
+    }
+    memcpy(tmp, path, n);
+    memcpy(tmp + n, ".compact", 9);
+    hid_t src = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
+    hid_t dst = src < 0 ? -1 : H5Fcreate(tmp, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    int rc = dst >= 0 &&
+                     H5Literate(src, H5_INDEX_NAME, H5_ITER_INC, NULL, compact_link, &dst) >= 0 &&
+                     H5Aiterate2(src, H5_INDEX_NAME, H5_ITER_INC, NULL, compact_attr, &dst) >= 0
+                 ? 0 : -1;
+    if (dst >= 0 && H5Fclose(dst) < 0) rc = -1;
+    if (src >= 0) H5Fclose(src);
+    if (rc == 0 && rename(tmp, path) != 0) rc = -1;
+    if (rc != 0) {
+        remove(tmp);
+        fmt_err(err, errlen, "%s: cannot compact the file (it is complete as it is)", path);
+    }
+    free(tmp);
+    return rc;
+}
+
 int stf_h5_close(stf_h5 *h, char *err, size_t errlen)
 {
     if (!h) return 0;
@@ -565,6 +629,8 @@ int stf_h5_close(stf_h5 *h, char *err, size_t errlen)
         fmt_err(err, errlen, "%s: error closing HDF5 file", h->path);
         rc = -1;
     }
+    /* checkpoints written and all removed: their space goes with a copy of the rest */
+    if (rc == 0 && h->checkpoints > 0 && !h->ckpt_live) rc = stf_h5_compact(h->path, err, errlen);
     free_writer(h);
     return rc;
 }
@@ -1092,15 +1158,20 @@ int stf_h5_write_checkpoint(stf_h5 *h, const stf_state *st)
                     flush_and_bound(h) < 0))
         rc = -1;
     if (rc != 0) snprintf(h->err, sizeof h->err, "cannot write /" CKPT_NAME);
+    else h->checkpoints++, h->ckpt_live = 1;
     return rc;
 }
 
 int stf_h5_delete_checkpoint(stf_h5 *h)
 {
     if (!h) return -1;
+    if (H5Lexists(h->file, CKPT_NAME, H5P_DEFAULT) > 0 || H5Lexists(h->file, CKPT_NEW, H5P_DEFAULT) > 0)
+        h->checkpoints++; /* one written by an earlier run (a resumed file): its space goes too */
     if (unlink_if_there(h->file, CKPT_NEW) == 0 && unlink_if_there(h->file, CKPT_NAME) == 0 &&
-        H5Fflush(h->file, H5F_SCOPE_GLOBAL) >= 0)
+        H5Fflush(h->file, H5F_SCOPE_GLOBAL) >= 0) {
+        h->ckpt_live = 0;
         return 0;
+    }
     snprintf(h->err, sizeof h->err, "cannot remove /" CKPT_NAME);
     return -1;
 }

@@ -79,8 +79,14 @@ void stf_h5_abort(stf_h5 *h);
 struct stf_state;
 /* Writes st as the new checkpoint. Returns 0 or -1. */
 int stf_h5_write_checkpoint(stf_h5 *h, const struct stf_state *st);
-/* Removes the checkpoint (a run that ended needs none). Returns 0 or -1. */
+/* Removes the checkpoint (a run that ended needs none). Returns 0 or -1. A file whose
+ * checkpoints were all removed is compacted at stf_h5_close (their space is not reused:
+ * stf_h5_compact). */
 int stf_h5_delete_checkpoint(stf_h5 *h);
+/* Copies the file at path object by object (root links and attributes) into path.compact
+ * and renames that over path: the space freed objects held goes. Returns 0, or -1 with
+ * "PATH: why" in err (path is then unchanged). */
+int stf_h5_compact(const char *path, char *err, size_t errlen);
 /* Reads the checkpoint of the output file path into st (owning its arrays). Returns 0; 1
  * when the file has none; -1 with "PATH: why" in err. */
 int stf_h5_read_checkpoint(const char *path, struct stf_state *st, char *err, size_t errlen);

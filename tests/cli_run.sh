@@ -2,7 +2,8 @@
 # the documented layout (frames Step#N with float32 x,y,z,vx,vy,vz and an increasing
 # TimeValue; root attributes; /metrics with a JSON attribute), the XDMF companion exists,
 # h5dump reads the file, `stf report --json` prints valid JSON, and --set / --unset runs work;
-# `stf CMD --help` (and -h) prints that command's usage to stdout, exit 0, for every command.
+# `stf CMD --help` (and -h) prints that command's usage to stdout, exit 0, for every command;
+# a run that checkpointed at every frame ends as small as one that did not (same contents).
 #
 # usage: bash cli_run.sh STF_BINARY PROJECT_DIR   (run in the build's tests directory)
 . "$(dirname "$0")/lib_cli.sh" cli_run "$@"
@@ -165,6 +166,18 @@ if kb is not None and (kb != 0).any():
 if int(b.attrs.get("history_steps", 0)) != 0:
     sys.exit("history off: history_steps attribute %s" % b.attrs["history_steps"])
 EOF
+fi
+
+# checkpoints leave no space behind: a run that wrote one at every frame ends with a file the
+# size of the same run without checkpoints (compacted at the end, stf_h5_compact), and the
+# same contents (h5diff: only the wall time differs)
+if run ck_every --checkpoint 0 && run ck_off --checkpoint off; then
+    se=$(stat -c %s ck_every.h5) so=$(stat -c %s ck_off.h5)
+    [ "$se" -le $((so + so / 10)) ] || fail "checkpointed run's file $se bytes against $so without checkpoints"
+    h5diff ck_off.h5 ck_every.h5 >ck.diff 2>&1
+    grep -v "wall_seconds" ck.diff | grep -q "^attribute\|^dataset\|Not comparable" &&
+        { fail "checkpointed and plain runs differ beyond the wall time:"; cat ck.diff >&2; }
+    [ -e ck_every.h5.compact ] && fail "ck_every.h5.compact left behind"
 fi
 
 # every command's --help / -h: its own usage lines on stdout, exit 0
