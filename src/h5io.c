@@ -77,8 +77,8 @@ struct stf_h5 {
     char *path;
     frame_info *frames;
     int nframes, cap;
-    int checkpoints; /* written through this handle */
-    int ckpt_live;   /* 1 while the file holds one (written, not deleted since) */
+    int ckpt_removed; /* 1 when a checkpoint was removed and none written since: its space
+                         goes at the close (stf_h5_compact) */
     char err[256];
 };
 
@@ -630,7 +630,7 @@ int stf_h5_close(stf_h5 *h, char *err, size_t errlen)
         rc = -1;
     }
     /* checkpoints written and all removed: their space goes with a copy of the rest */
-    if (rc == 0 && h->checkpoints > 0 && !h->ckpt_live) rc = stf_h5_compact(h->path, err, errlen);
+    if (rc == 0 && h->ckpt_removed) rc = stf_h5_compact(h->path, err, errlen);
     free_writer(h);
     return rc;
 }
@@ -1158,18 +1158,18 @@ int stf_h5_write_checkpoint(stf_h5 *h, const stf_state *st)
                     flush_and_bound(h) < 0))
         rc = -1;
     if (rc != 0) snprintf(h->err, sizeof h->err, "cannot write /" CKPT_NAME);
-    else h->checkpoints++, h->ckpt_live = 1;
+    else h->ckpt_removed = 0;
     return rc;
 }
 
 int stf_h5_delete_checkpoint(stf_h5 *h)
 {
     if (!h) return -1;
-    if (H5Lexists(h->file, CKPT_NAME, H5P_DEFAULT) > 0 || H5Lexists(h->file, CKPT_NEW, H5P_DEFAULT) > 0)
-        h->checkpoints++; /* one written by an earlier run (a resumed file): its space goes too */
+    /* this run's checkpoint or an earlier run's (a resumed file): its space goes at the close */
+    int there = H5Lexists(h->file, CKPT_NAME, H5P_DEFAULT) > 0 || H5Lexists(h->file, CKPT_NEW, H5P_DEFAULT) > 0;
     if (unlink_if_there(h->file, CKPT_NEW) == 0 && unlink_if_there(h->file, CKPT_NAME) == 0 &&
         H5Fflush(h->file, H5F_SCOPE_GLOBAL) >= 0) {
-        h->ckpt_live = 0;
+        h->ckpt_removed |= there;
         return 0;
     }
     snprintf(h->err, sizeof h->err, "cannot remove /" CKPT_NAME);

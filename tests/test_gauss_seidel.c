@@ -40,6 +40,14 @@ static stf_fluid *make(const stf_fluid_def *d)
     return f;
 }
 
+/* Particles 0 and 1, 0.6 h apart on the x axis, receding from each other at u each. */
+static void add_receding_pair(stf_fluid *f, double h, double u)
+{
+    double a[3] = {0, 0, 0}, b[3] = {0.6 * h, 0, 0}, va[3] = {-u, 0, 0}, vb[3] = {u, 0, 0};
+    stf_fluid_add_particle(f, a, va);
+    stf_fluid_add_particle(f, b, vb);
+}
+
 /* Two particles 0.6 h apart moving apart at u each: the spring made at the first step
  * (rest length L = its length then, no plastic creep) is stretched by 2 u dt at the next
  * prediction. */
@@ -54,9 +62,7 @@ static void exact_pair(double k_min, double tau)
     stf_fluid *f = make(&d);
     if (!f) return;
     double h = 2 * d.spacing, dt = 1e-3, u = 0.01;
-    double a[3] = {0, 0, 0}, b[3] = {0.6 * h, 0, 0}, va[3] = {-u, 0, 0}, vb[3] = {u, 0, 0};
-    stf_fluid_add_particle(f, a, va);
-    stf_fluid_add_particle(f, b, vb);
+    add_receding_pair(f, h, u);
     /* the XPBD update of one spring of rest length Lr at separation r that approached by du
        in the step: r + 2 dlambda, dlambda = (-(r - Lr) - g du) / ((1 + g) 2 + 2/c) */
     double g = tau / dt, r0 = 0.6 * h, Lr = r0 + 2 * u * dt; /* made at its length, step 1 */
@@ -189,9 +195,7 @@ static void liquid_creep(int history, double onset, double want_alpha)
     stf_fluid *f = make(&d);
     if (!f) return;
     double h = 2 * d.spacing, dt = 1e-3, u = 0.01;
-    double a[3] = {0, 0, 0}, b[3] = {0.6 * h, 0, 0}, va[3] = {-u, 0, 0}, vb[3] = {u, 0, 0};
-    stf_fluid_add_particle(f, a, va);
-    stf_fluid_add_particle(f, b, vb);
+    add_receding_pair(f, h, u);
     CHECK(stf_fluid_step(f, dt) == 0, "step 1: %s", stf_fluid_failure(f));
     double x[6], v[6];
     stf_fluid_get_positions(f, x);
