@@ -1,5 +1,6 @@
 /* cy.c - Carreau-Yasuda non-Newtonian SPH with pressure projection and implicit viscosity
- * (the second paper, "003": Eq. 3, 9-26, Algorithms 1 and 2).
+ * (the second paper: Zhang, Ban, Wang, Liu, "A Symmetry Particle Method towards Implicit
+ * Non-Newtonian Fluids", Symmetry 9(2), 26, 2017: Eq. 3, 9-26, Algorithms 1 and 2).
  *
  * One step (Algorithm 2):
  *   1. neighbours (cy_neighbours; the shared grid if periodic), densities

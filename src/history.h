@@ -2,7 +2,8 @@
  *
  * D^q x_n = dt^(1-q)/Gamma(3-q) * sum_p a_{p,n} v_p. Each particle keeps its past velocities in
  * a ring (float32, 12 bytes a vector as in the paper's Table 1); the weighted sum is taken once
- * per particle per step, so a spring needs only |D_i - D_j| (DESIGN.md, "History springs").
+ * per particle per step, so a spring needs only |D_i - D_j| (Eq. 6 takes the norm of the
+ * difference of the two particles' weighted velocity sums, which is the difference of their D).
  * The ring is stored by time slot (slot s holds all particles' velocities of one step), so
  * the weighted sum streams through memory in a loop the compiler vectorizes. Row r of a slot
  * holds particle part[r]'s velocity: a re-sort renames the rows' particles instead of moving

@@ -1,4 +1,4 @@
-/* metrics.h - the run metrics of DESIGN.md, computed from an output file.
+/* metrics.h - the run metrics (`stf report`, `expect:` blocks), computed from an output file.
  *
  * Definitions (the one place they live):
  * - surface_height: top of the fluid at t = 0: the highest particle centre + spacing/2.
@@ -125,7 +125,9 @@ extern const char *const stf_fluid_metric_names[];
 
 /* Computes the metrics of the run in path. Returns 0, or 2 with a message (bad file). */
 int stf_metrics_compute(const char *path, stf_metrics *m, char *err, size_t errlen);
-/* The metrics as the JSON object of DESIGN.md (malloc'ed). */
+/* The metrics as a JSON object (malloc'ed): {"time_end", "surface_height", "bodies": {NAME:
+ * {"radius", ... body metrics ..., "final_position": [x, y, z]}}, "fluid": {"particles",
+ * "escaped", "max_speed", "nan", ... fluid metrics ...}}; a metric that never happened is null. */
 char *stf_metrics_json(const stf_metrics *m);
 /* Looks up a metric by expectation key ("bounces", "ball.sink_time", "fluid.escaped",
  * "time_end"). Returns 0 and the value (NAN for null), or -1 if the key names nothing. */

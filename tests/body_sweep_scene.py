@@ -1,4 +1,4 @@
-# body_sweep_scene.py MODEL RS RATIO PLACE SHAPE [DURATION] -> a scene on stdout (issue 19's sweep,
+# body_sweep_scene.py MODEL RS RATIO PLACE SHAPE [DURATION] -> a scene on stdout (the sweep of
 # tests/cli_body_sweep.sh): MODEL cl (Clavet) | cy (Carreau-Yasuda, Newtonian 3.8e-4 m^2/s); a
 # sphere of radius RS spacings (or a cube of side 2 RS spacings) of RATIO times the fluid's
 # density, placed inside the fluid (its centre at mid-depth), half in (its centre on the

@@ -1,4 +1,4 @@
-# cli_bad_input.sh - bad input to the command-line tool: every case exits 2 (DESIGN: bad
+# cli_bad_input.sh - bad input to the command-line tool: every case exits 2 (bad
 # input), says on stderr what is wrong and where (FILE:LINE:COL: KEY: ... for scene files,
 # the override for --set, the flag, the path), and leaves no output behind: an existing
 # out.h5 keeps its content and no out.xmf appears.

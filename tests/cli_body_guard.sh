@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Issue 19, points 5 and 6.
+# cli_body_guard.sh - a body beyond its physical bounds stops the run; interrupts act between
+# substeps.
 # - A body beyond any physical bound stops the run: a 0.1 mg ball of 2 cm radius (density
 #   0.003 kg/m^3) in the small drop scene. Physically it rises at most at about 2 g (its
 #   added mass, half the displaced fluid's, limits the acceleration); the explicit coupling

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 19, point 3, for the Clavet fluid (with fluid.settle): bodies of radius 1.5 and 3
+# cli_body_sweep.sh - the Clavet fluid (with fluid.settle) and bodies of radius 1.5 and 3
 # spacings, density ratios 0.25 to 4, placed inside, half in and above the fluid
 # (tests/body_sweep_scene.py), run for 1 s:
 # - the fluid's force never exceeds 10 [(rho_f V + M) g + rho_f A v^2 / 2] (weight and

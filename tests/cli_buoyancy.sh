@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 19, point 2: buoyancy from the first step (Clavet fluid, fluid.settle). A sphere of
+# cli_buoyancy.sh - buoyancy from the first step (Clavet fluid, fluid.settle). A sphere of
 # radius 3 and 6 spacings is held still in the middle of a tank of water at rest (5 mm
 # spacing, the tank 8 spacings wider and 10 taller than the sphere); the fluid settles
 # around it for 0.3 s before t = 0 (fluid.settle). The fluid's force on it over the first

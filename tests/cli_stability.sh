@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Hard cases stay numerically stable (issue 6). Each case is tests/scenes/stab_pool.yaml (a
+# Hard cases stay numerically stable. Each case is tests/scenes/stab_pool.yaml (a
 # 12 cm pool of 864 particles at 1 cm with a 2.5 cm ball, every effect on, the bowling
 # scene's parameters) or stab_history.yaml changed by --set, run by `stf run` to the end
 # (exit 0), then held by tests/stability_check.py over every frame: no NaN/Inf, no particle

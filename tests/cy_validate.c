@@ -445,13 +445,13 @@ static int dambreak(void)
     return test_result("cy_validate dambreak");
 }
 
-/* scenes/dam_break_3d.yaml (issue 8) at a coarse spacing (0.072 m: 13^3 = 2197 particles),
- * dt = 0.01 s and cfl = 0.2 so the CFL condition binds in the surge. Holds: every substep's
- * Courant number v_max dt_sub / h is at most cfl (the solver's own figure, and v_max from the
- * velocities before each coupled step times its longest substep), the CFL condition did cut
- * steps, the mean density error over the substeps is at most eta, no particle leaves, and the
- * front advances as a dam break (Martin & Moyce: x/a = 2.1 at t sqrt(2g/a) = 1.83, here
- * t = 0.4 s; the test takes between 1.5 and 2.6). */
+/* scenes/dam_break_3d.yaml (the SPlisHSPlasH benchmark) at a coarse spacing (0.072 m: 13^3 = 2197
+ * particles), dt = 0.01 s and cfl = 0.2 so the CFL condition binds in the surge. Holds: every
+ * substep's Courant number v_max dt_sub / h is at most cfl (the solver's own figure, and v_max
+ * from the velocities before each coupled step times its longest substep), the CFL condition did
+ * cut steps, the mean density error over the substeps is at most eta, no particle leaves, and the
+ * front advances as a dam break (Martin & Moyce: x/a = 2.1 at t sqrt(2g/a) = 1.83, here t = 0.4 s;
+ * the test takes between 1.5 and 2.6). */
 static int dam3d(const char *path)
 {
     const double T = 0.4, sp = 0.072, cfl = 0.2, g = 9.81;

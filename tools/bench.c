@@ -1,4 +1,4 @@
-/* bench.c - `stf bench`: what accuracy costs in time (issue 5).
+/* bench.c - `stf bench`: what accuracy costs in time, and the solvers' speed.
  *
  *   stf bench table1 [BOWLING.yaml]   the paper's Table 1 (time per step without history, time
  *                                      of the history terms, history memory, d = 0/50/150/500)
@@ -11,9 +11,10 @@
  *                                      wider pool at the same spacing (--grow domain)
  *   stf bench grid SCENE              the neighbour search alone: a candidate rebuild and a
  *                                      filter, at the scene's particles and at 10x as many
- *   stf bench dam SCENE               Carreau-Yasuda solver speed (issue 8): wall and steps per
- *                                      simulated second, pressure iterations, density error,
- *                                      peak memory, for 1 and 2 threads (--duration, 0.2 s)
+ *   stf bench dam SCENE               Carreau-Yasuda solver speed (against SPlisHSPlasH):
+ *                                      wall and steps per simulated second, pressure
+ *                                      iterations, density error, peak memory, for 1 and 2
+ *                                      threads (--duration, 0.2 s)
  *   stf bench convergence SCENE       every metric at the scene's dt, dt/2, dt/4 and at 1.5x its
  *                                      spacing, side by side, each within --tolerance of the
  *                                      finest (dt/4) run or not (exit 1, as `stf check`)
@@ -1438,7 +1439,8 @@ static int bench_convergence(const bench_args *a, const char *self)
 /* ------------------------------------------------------------------------------ dam */
 
 /* The Carreau-Yasuda solver on a scene for `duration` simulated seconds with `threads`
- * threads: one row of the issue 8 table. Returns 0, 2 bad scene, 3 numerical failure. */
+ * threads: one row of the table against SPlisHSPlasH (tools/README.md). Returns 0, 2 bad
+ * scene, 3 numerical failure. */
 static int dam_row(const bench_args *a, double duration, int threads)
 {
     char err[2048];

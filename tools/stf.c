@@ -1,5 +1,5 @@
 /* stf.c - the command-line tool: run scenes, check expectations, report metrics.
- * Exit codes (DESIGN.md): 0 ok, 1 expectation failed, 2 bad input, 3 numerical failure,
+ * Exit codes: 0 ok, 1 expectation failed, 2 bad input, 3 numerical failure,
  * 130 interrupted. */
 #include <errno.h>
 #include <math.h>

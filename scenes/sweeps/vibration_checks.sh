@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The settings checked for the paper's vibration fingers (issue 4; README, "Vibration"):
+# The settings checked for the paper's vibration fingers (scenes/README.md, "Vibration"):
 # each pair is the shipped scene with / without history at 2 cm spacing (3 s), with the
 # changes given; prints fluid.finger_height (of the fluid body) and fluid.escaped of both,
 # and the surface analysis of scenes/sweeps/surface_relief.py when h5py is present.

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Why this model gives no vibration fingers (issue 4; README, "Vibration"): two series that
+# Why this model gives no vibration fingers (scenes/README.md, "Vibration"): two series that
 # show the history terms flattening a shaken surface, never raising it.
 #  1. The shipped vibration scene at 2 cm (3 s, seeds 7 and 8) for k_hist from 300 to 6e5
 #     and without history: fluid.finger_height and fluid.escaped of each.
