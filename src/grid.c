@@ -256,10 +256,9 @@ pack_near4(int32_t *out, __m128i j, __m256d rx, __m256d ry, __m256d rz, __m256d 
 /* find_candidates eight entries at a time with no branch: the hits of each four are packed
  * to the front of a vector (a shuffle table) and stored at the end of the list so far (out
  * has room for the whole run plus eight), the same list in the same order. Hand-written
- * because it was measured: the search took 6.7 ms of CPU for 19,360 particles four at a
- * time in double, 13.5 ms as plain C that first stores the comparisons (gcc 12 does not
- * vectorise them), 16 ms as above; in float, eight at a time, 6.0 ms (for 8.05 the same day in double). No FMA:
- * the same roundings as find_candidates. */
+ * because the compiler does not vectorise the compare-and-pack loop: the plain C of
+ * find_candidates takes about twice as long. Float distances, as find_candidates (filter_one
+ * then keeps the neighbours in double). No FMA: the same roundings as find_candidates. */
 __attribute__((target("avx2"))) static int find_candidates_avx2(const double *x, int i,
                                                                  float lim, const cell_run *r,
                                                                  int32_t *out)
