@@ -34,7 +34,7 @@ stf_fluid_def stf_default_fluid_def(void)
     d.q = 0.5;
     d.d = 150;
     d.memory = 0.0;
-    d.k_hist = 1000.0 * d.k_min; /* see README: the paper's 10 k_min in its units */
+    d.k_hist = 1000.0 * d.k_min; /* src/README.md, "Units": the paper's 10 k_min in its units */
     d.history_mode = STF_HISTORY_WINDOW;
     d.terms = 16;
     d.stick = 200.0;

@@ -7,7 +7,7 @@
 #   - Newtonian (the scene): within 5% of the surface velocity, shape within 3%;
 #   - shear thickening (mu0 = 0.01 m^2/s, K = 10 s, n = 1.5): within 10%, shape within 5%.
 # (Shear thinning is left out: the SPH shear rate's noise thins the fluid where the stress is
-# low, README "The Carreau-Yasuda model".)
+# low, tests/README.md "Carreau-Yasuda validation".)
 #
 # usage: bash cli_cy_periodic.sh STF_BINARY PROJECT_DIR   (run in the build's tests directory)
 . "$(dirname "$0")/lib_cli.sh" cli_cy_periodic "$@"

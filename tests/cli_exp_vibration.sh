@@ -6,7 +6,7 @@
 # The paper's fingers (fluid.finger_height with history >= 2x without) do NOT appear in this
 # model, and this test holds why: the history terms only add spring stiffness, and the stiffer
 # they are, the flatter the shaken layer (the finger height, of the fluid body, falls from no
-# history through k_hist = 3000 to the shipped 2e5; README, "Experiments", and
+# history through k_hist = 3000 to the shipped 2e5; scenes/README.md, "Vibration", and
 # scenes/sweeps/vibration_why.sh for the whole k_hist series).
 # Args: STF_BINARY PROJECT_DIR
 stf=$1; src=$2

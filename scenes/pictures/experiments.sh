@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Makes the pictures of the README's "Experiments" section from the shipped scenes and prints
+# Makes the pictures of scenes/README.md's measured experiments from the shipped scenes and prints
 # each run's metrics. Run from the project root after building:
 #   bash scenes/pictures/experiments.sh [build/tools/stf]
 # Runs are written to out/experiments/ (full resolution except the full-history bowling runs,

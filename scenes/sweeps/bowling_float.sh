@@ -2,12 +2,12 @@
 # The bowling ball (scenes/bowling_ball.yaml) across the history parameters, at a reduced
 # resolution (spacing 3 cm: 2,420 particles; 2 s simulated, dt = 1 ms). Two sweeps:
 #  DIR/grid:  k_hist in {0, 2.5, 5, 10} in the paper's units of k_min (0, 50000, 100000,
-#             200000 in SI at the scene's 2 cm reference spacing, see README "Units") x
+#             200000 in SI at the scene's 2 cm reference spacing, see src/README.md, "Units") x
 #             d in {50, 150, 250} steps: 12 runs. Plots: float duration (grid.png) and the
 #             ball's final height (grid_final_z.png) against k_hist, one line per d.
 #  DIR/onset: k_hist from 0 to 2.5 k_min in steps of 0.5 (0..50000 SI), d = 50: 6 runs, where
 #             the ball stops sinking. Plot: float duration (onset.png).
-# Each writes its summary.csv; README, "Sweeps", has the tables and plots.
+# Each writes its summary.csv (the shipped ones: bowling_float_grid.csv, bowling_float_onset.csv).
 #
 # usage: bash scenes/sweeps/bowling_float.sh [STF] [DIR] [more stf sweep options, e.g. --jobs 2]
 set -eu

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""surface_relief.py - the surface of a vibrated layer (README, "Vibration"), beyond
+"""surface_relief.py - the surface of a vibrated layer (scenes/README.md, "Vibration"), beyond
 fluid.finger_height: per frame of the second half of the run, the columns (2 spacings wide)
 of the fluid body (particles connected by neighbours closer than 1.5 spacings, as in
 src/metrics.h), then
