@@ -44,11 +44,45 @@ extern char **environ;
 #define MAX_KEYS SWEEP_MAX_KEYS
 #define MAX_FIXED 64
 
-static const char *USAGE =
+static const cli_usage USAGE = {
+    "sweep",
     "usage: stf sweep SCENE (--vary KEY=V1,V2,...|--vary KEY=START:STOP:COUNT)... | --list FILE\n"
     "                 -o DIR [--repeat N] [--jobs N] [--threads N] [--duration S]\n"
     "                 [--set KEY=VALUE]... [--unset KEY]... [--plot METRIC] [--x KEY]\n"
-    "                 [--series KEY] [--png FILE.png] [--quiet]";
+    "                 [--series KEY] [--png FILE.png] [--quiet]\n",
+    "Runs SCENE many times, each a stf run with its own --set's into DIR/run_NNNN.h5 (log:\n"
+    "DIR/run_NNNN.log): every combination of the --vary values (the last key fastest) or each\n"
+    "line of a --list file, --repeat times. Then DIR/summary.csv, one row a run (its values,\n"
+    "exit status, expectations, wall seconds, every metric), and a plot, DIR/summary.png.\n"
+    "Started again on the same DIR (DIR/plan.txt: the same sweep), it skips the runs that\n"
+    "ended and continues the stopped ones from their checkpoints. Under mpirun (an stf built\n"
+    "with MPI) the runs are spread over the ranks.\n"
+    "options:\n"
+    "  --vary KEY=V1,V2,...         a scene key (as for --set) and its values, YAML (commas\n"
+    "                               inside [...] belong to the value); up to 16 keys\n"
+    "  --vary KEY=START:STOP:COUNT  COUNT values (1 to 100000) evenly spaced, both ends in\n"
+    "  --list FILE                  one run a line, KEY=VALUE words; '#' starts a comment\n"
+    "  -o, --out DIR                the runs and the summary: a new or empty directory, or the\n"
+    "                               same sweep's (required)\n"
+    "  --repeat N                   runs of each combination or line, 1 to 1000 (default 1);\n"
+    "                               at most 100000 runs in all\n"
+    "  --jobs N                     runs at a time, 1 to 1024 (default: the cores)\n"
+    "  --threads N                  OpenMP threads of each run, 1 to 1024 (default: the cores\n"
+    "                               / the jobs)\n"
+    "  --duration S                 simulated seconds of each run (default: the scene's);\n"
+    "                               round(S / dt) steps, 1 to 1e9\n"
+    "  --set KEY=VALUE, --unset KEY for every run, before its varied keys (at most 64)\n"
+    "  --plot METRIC                the plotted column of summary.csv, a metric key such as\n"
+    "                               ball.sink_time (default: the first body's float_duration;\n"
+    "                               without bodies fluid.max_speed)\n"
+    "  --x KEY                      the x axis, a varied key (default: the first)\n"
+    "  --series KEY                 one line per value of this varied key (default: the\n"
+    "                               second, if any)\n"
+    "  --png FILE.png               the plot (default DIR/summary.png)\n"
+    "  -q, --quiet                  no progress on stderr\n"
+    "exit codes: 0 every run done and its expectations held, 1 a run's expectations failed,\n"
+    "2 bad input (no run started) or a run that did not end (its log says why), 130\n"
+    "interrupted (run the same sweep again to continue it)\n"};
 
 typedef struct sweep_args {
     const char *scene, *dir, *list, *plot_metric, *plot_x, *plot_series, *png;
@@ -65,8 +99,7 @@ static void on_signal(int sig) { stop_sweep = sig; }
 
 static int bad(const char *msg, const char *arg)
 {
-    fprintf(stderr, "stf sweep: %s '%s'\n%s\n", msg, arg, USAGE);
-    return 2;
+    return cli_usage_error(&USAGE, "%s '%s'", msg, arg);
 }
 
 static int parse_int(const char *s, int lo, int hi, int *out)
@@ -112,16 +145,14 @@ static int parse_args(int argc, char **argv, sweep_args *a)
         else if (!strcmp(s, "--png") && more) a->png = argv[++i];
         else if (!strcmp(s, "--series") && more) a->plot_series = argv[++i];
         else if (!strcmp(s, "--quiet") || !strcmp(s, "-q")) a->quiet = 1;
-        else if (!strcmp(s, "-h") || !strcmp(s, "--help")) {
-            puts(USAGE);
-            return 1;
-        } else if (s[0] == '-') return bad("unknown or incomplete option", s);
+        else if (s[0] == '-') return bad("unknown or incomplete option", s);
         else if (!a->scene) a->scene = s;
         else return bad("unexpected argument", s);
     }
-    if (!a->scene) return bad("no scene file given", "");
-    if (!a->dir) return bad("no output directory given (-o DIR)", "");
-    if (!a->nvary && !a->list) return bad("nothing to vary: give --vary KEY=... or --list FILE", "");
+    if (!a->scene) return cli_usage_error(&USAGE, "no scene file given");
+    if (!a->dir) return cli_usage_error(&USAGE, "no output directory given (-o DIR)");
+    if (!a->nvary && !a->list)
+        return cli_usage_error(&USAGE, "nothing to vary: give --vary KEY=... or --list FILE");
     if (a->nvary && a->list) return bad("--vary and --list exclude each other; got --list", a->list);
     return 0;
 }
@@ -741,9 +772,9 @@ static int under_mpi(void)
 
 int cli_sweep(int argc, char **argv)
 {
+    if (cli_help_asked(argc, argv)) return cli_help(&USAGE);
     sweep_args a;
-    int prc = parse_args(argc, argv, &a);
-    if (prc) return prc == 1 ? 0 : 2;
+    if (parse_args(argc, argv, &a)) return 2;
     sweep_plan p;
     int rc = build_plan(&a, &p);
     if (rc) {
