@@ -61,6 +61,7 @@ typedef struct bench_args {
     int repeat;        /* table1, effects, scaling: rounds over the rows (interleaved); each
                           row's fastest run counts */
     double duration;   /* accuracy: simulated seconds, 0 = default */
+    const char *duration_arg; /* its text */
     double error;      /* accuracy: error budget, m */
     const char *knobs; /* accuracy: comma list of dt, spacing, history, solver */
     int grow_domain;   /* scaling: 10x the particles by a wider pool (1) or a finer spacing */
@@ -309,7 +310,7 @@ static int parse(int argc, char **argv, bench_args *a)
             if (*end || t < 1 || t > 100) return bad_of(a->what, "--repeat must be an integer in [1,100], got", argv[i]);
             a->repeat = (int)t;
         } else if (!strcmp(s, "--duration") && more) {
-            a->duration = strtod(argv[++i], &end);
+            a->duration = strtod(a->duration_arg = argv[++i], &end);
             if (*end || !(a->duration > 0) || !isfinite(a->duration))
                 return bad_of(a->what, "--duration must be a number of seconds > 0, got", argv[i]);
         } else if (!strcmp(s, "--error") && more) {
@@ -352,6 +353,19 @@ static int parse(int argc, char **argv, bench_args *a)
     if (!a->warmup_set) a->warmup = 50;
     if (!a->repeat) a->repeat = 1;
     return 0;
+}
+
+/* Refuses a run duration whose step count round(duration / dt) is not one a run can take
+ * (stf_run_steps); whence names where the duration came from when not from --duration.
+ * Returns 0, or 2 with a message. */
+static int check_duration(const bench_args *a, double duration, double dt, const char *whence)
+{
+    char why[512];
+    if (stf_run_steps(duration, dt, why, sizeof why) >= 0) return 0;
+    if (a->duration > 0)
+        fprintf(stderr, "stf bench %s: --duration %s: %s\n", a->what, a->duration_arg, why);
+    else fprintf(stderr, "stf bench %s: %s: %s: %s\n", a->what, a->scene, whence, why);
+    return 2;
 }
 
 /* ------------------------------------------------------------------ in-process timing */
@@ -1110,6 +1124,10 @@ static int bench_accuracy(const bench_args *a, const char *self)
     double eta = sc->fluid.cy.eta, cg_tol = sc->fluid.cy.cg_tolerance;
     double duration = a->duration > 0 ? a->duration : a->full ? sc->duration : fmin(sc->duration, 0.6);
     stf_scene_free(sc);
+    /* the finest dt run (dt / 4) takes the most steps */
+    const char *knobs_in = a->knobs ? a->knobs : "dt";
+    if (check_duration(a, duration, strstr(knobs_in, "dt") ? dt / 4 : dt, "its duration") != 0)
+        return 2;
     /* Short by default: the spacing the cli_bowling test uses and 0.6 s (the impact). */
     double base_sp = a->full ? sp : fmax(sp, 0.025);
     const char *dir = a->out ? a->out : "bench_accuracy";
@@ -1359,6 +1377,7 @@ static int bench_convergence(const bench_args *a, const char *self)
     char dirbuf[128];
     snprintf(dirbuf, sizeof dirbuf, "convergence-%s", sc->name);
     stf_scene_free(sc);
+    if (check_duration(a, duration, dt * conv_dt[CONV_FINEST], "its duration") != 0) return 2;
     if (steps_memory)
         fprintf(stderr, "memory given in steps (d = %d): dt/2 and dt/4 change the memory in "
                 "seconds; give effects.history.memory\n", d);
@@ -1608,6 +1627,15 @@ static int dam_row(const bench_args *a, double duration, int threads)
 static int bench_dam(const bench_args *a)
 {
     double duration = a->duration > 0 ? a->duration : 0.2;
+    char err[2048];
+    stf_scene *sc;
+    if (stf_scene_load(a->scene, a->ov, a->nov, &sc, err, sizeof err) != 0) {
+        fprintf(stderr, "%s\n", err);
+        return 2;
+    }
+    int bad_steps = check_duration(a, duration, sc->dt, "the default duration, 0.2 s,");
+    stf_scene_free(sc);
+    if (bad_steps) return 2;
     printf("# stf bench dam %s: %.3g simulated s from rest (--duration)\n", a->scene, duration);
     print_load();
     printf("%7s %8s %10s %10s %9s %8s %8s %9s %9s %9s %9s %7s %8s %8s\n", "threads", "n",

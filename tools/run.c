@@ -19,6 +19,7 @@ typedef struct run_args {
     stf_override ov[256];
     int nov;
     double duration; /* s, 0: the scene's */
+    const char *duration_arg; /* --duration's text */
     int threads, quiet;
     int resume;        /* --resume: continue OUT.h5 from its checkpoint */
     double checkpoint; /* wall-clock s between checkpoints; < 0: none */
@@ -111,7 +112,7 @@ static int parse_args(int argc, char **argv, run_args *a, const cli_usage *u)
             a->ov[a->nov++].value = NULL;
         } else if (!strcmp(s, "--duration") && more) {
             char *end;
-            a->duration = strtod(argv[++i], &end);
+            a->duration = strtod(a->duration_arg = argv[++i], &end);
             if (*end || !(a->duration > 0) || !isfinite(a->duration))
                 return cli_usage_error(u, "--duration must be a number of seconds > 0, got '%s'",
                                        argv[i]);
@@ -456,7 +457,10 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
     long steps = (long)p.steps, first = sim->steps + 1;
     long per_frame = lround(1.0 / (sc->frame_rate * sc->dt));
     if (per_frame < 1) per_frame = 1;
-    long body_every = lround(0.002 / sc->dt); /* bodies at 500 Hz or every step */
+    /* bodies at 500 Hz or every step (a dt so small that 2 ms is more steps than the run
+       has: none but the first) */
+    double body_steps = 0.002 / sc->dt;
+    long body_every = body_steps < steps + 1 ? lround(body_steps) : steps + 1;
     if (body_every < 1) body_every = 1;
     if (resume && !a->quiet)
         fprintf(stderr, "stf: resuming %s at t = %.4f s (step %ld of %ld)\n", out, sim->time,
@@ -581,6 +585,22 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
     return status;
 }
 
+/* Refuses a run whose step count round(duration / dt) is not one it can take (the scene's own
+ * duration passed the loader; this is --duration's, or a resumed file's). Returns 0 or 2 with
+ * a message naming where the duration came from. */
+static int check_steps(const run_args *a, const stf_scene *sc, const char *resumed, int check)
+{
+    char why[512];
+    double duration = a->duration > 0 ? a->duration : sc->duration;
+    if (stf_run_steps(duration, sc->dt, why, sizeof why) >= 0) return 0;
+    if (resumed)
+        fprintf(stderr, "stf %s: %s: its stored duration: %s\n", usage_of(check)->cmd, resumed, why);
+    else if (a->duration > 0)
+        fprintf(stderr, "stf %s: --duration %s: %s\n", usage_of(check)->cmd, a->duration_arg, why);
+    else fprintf(stderr, "stf %s: %s: duration: %s\n", usage_of(check)->cmd, sc->path, why);
+    return 2;
+}
+
 /* --resume: finds the output and the scene (the scene given, which must be the one the file
  * was written by, or the scene text stored in the file) and reads the checkpoint. Returns
  * -1 to go on, or the exit code (0 for a run that already finished) with a message. The file
@@ -660,7 +680,8 @@ int cli_run(int argc, char **argv, int check)
     int status;
     if (a.resume) {
         status = prepare_resume(&a, &sc, &own, &out, &st);
-        if (status < 0) status = simulate(&a, sc, out, &m, &st);
+        if (status < 0 && (status = check_steps(&a, sc, out, check)) == 0)
+            status = simulate(&a, sc, out, &m, &st);
         else if (check && sc && (status == 0 || status == 3) && /* ended before: its metrics */
                  stf_metrics_compute(out, &m, err, sizeof err) != 0) {
             fprintf(stderr, "stf: %s\n", err);
@@ -673,7 +694,8 @@ int cli_run(int argc, char **argv, int check)
         }
         own = a.out ? NULL : default_out(sc);
         out = a.out ? a.out : own;
-        status = check_output(out, a.scene);
+        status = check_steps(&a, sc, NULL, check);
+        if (status == 0) status = check_output(out, a.scene);
         if (status == 0) status = simulate(&a, sc, out, &m, NULL);
     }
     stf_state_free(&st);

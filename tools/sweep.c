@@ -43,6 +43,7 @@ extern char **environ;
 
 #define MAX_KEYS SWEEP_MAX_KEYS
 #define MAX_FIXED 64
+#define MAX_RUNS 100000 /* runs of a sweep, repeats included */
 
 static const cli_usage USAGE = {
     "sweep",
@@ -184,10 +185,16 @@ static int parse_vary(const char *spec, sweep_key *k)
     k->key = dup_n(spec, (size_t)(eq - spec));
     const char *v = eq + 1;
     double a, b;
-    int n, used = 0;
-    if (v[0] != '[' && sscanf(v, "%lf:%lf:%d%n", &a, &b, &n, &used) == 3 && !v[used]) {
-        if (n < 1 || n > 100000 || !isfinite(a) || !isfinite(b))
-            return bad("--vary START:STOP:COUNT needs finite ends and COUNT >= 1, got", spec);
+    int used = 0;
+    char *end = NULL;
+    long n = 0;
+    /* START:STOP:COUNT when COUNT is an integer (strtol: a COUNT too large for sscanf's %d
+       was undefined, and could pass as a small one) */
+    if (v[0] != '[' && sscanf(v, "%lf:%lf:%n", &a, &b, &used) == 2 && used > 0 &&
+        v[used] >= '0' && v[used] <= '9' && (errno = 0, n = strtol(v + used, &end, 10), !*end)) {
+        if (errno == ERANGE || n < 1 || n > 100000 || !isfinite(a) || !isfinite(b))
+            return bad("--vary START:STOP:COUNT needs finite ends and COUNT in [1,100000], got",
+                       spec);
         for (int i = 0; i < n; i++) {
             char buf[32];
             /* the ends exactly; %.10g so that 0:1:11 gives 0.1, not 0.10000000000000001 */
@@ -274,6 +281,13 @@ static int read_list(const char *path, sweep_plan *p, int repeat)
             any = 1;
         }
         if (!any) continue;
+        if ((long)p->nruns + repeat > MAX_RUNS) {
+            fprintf(stderr, "%s:%d: more than %d runs (the lines times --repeat)\n", path, ln,
+                    MAX_RUNS);
+            for (int k = 0; k < MAX_KEYS; k++) free(vals[k]);
+            fclose(f);
+            return 2;
+        }
         for (int r = 0; r < repeat; r++) {
             add_run(p, vals, combo, r);
             p->runs[p->nruns - 1].line = ln;
@@ -300,7 +314,9 @@ static int build_plan(const sweep_args *a, sweep_plan *p)
         for (int j = 0; j < i; j++)
             if (!strcmp(p->keys[j].key, p->keys[i].key)) return bad("a key is varied twice:", p->keys[i].key);
         total *= p->keys[i].nval;
-        if (total > 100000) return bad("more than 100000 runs at", a->vary[i]);
+        if (total * a->repeat > MAX_RUNS)
+            return bad("more than 100000 runs (the values' combinations times --repeat) at",
+                       a->vary[i]);
     }
     for (long c = 0; c < total; c++) {
         char *vals[MAX_KEYS] = {0};
@@ -783,12 +799,20 @@ int cli_sweep(int argc, char **argv)
     }
     stf_metrics names = {0}; /* the first run's body names, for sweep_plot_check */
     for (int i = 0; i < p.nruns && rc == 0; i++) { /* every run's scene loads: bad input first */
-        stf_scene *sc;
+        stf_scene *sc = NULL;
         if (p.runs[i].repeat > 0) continue;
         rc = check_run(&a, &p, i, &sc);
         for (int k = 0; rc == 0 && i == 0 && k < sc->nbodies && k < STF_METRICS_MAX_BODIES; k++)
             snprintf(names.bodies[names.nbodies++].name, sizeof names.bodies[0].name, "%s", sc->bodies[k].name);
-        if (rc == 0) stf_scene_free(sc);
+        char why[512]; /* --duration at this run's dt (the scene's own duration passed its load) */
+        if (rc == 0 && a.duration &&
+            stf_run_steps(strtod(a.duration, NULL), sc->dt, why, sizeof why) < 0) {
+            fprintf(stderr, "stf sweep: --duration %s (run %d", a.duration, i);
+            if (p.runs[i].line) fprintf(stderr, ", %s:%d", a.list, p.runs[i].line);
+            fprintf(stderr, "): %s\n", why);
+            rc = 2;
+        }
+        if (sc) stf_scene_free(sc);
     }
     char perr[512];
     if (rc == 0 && sweep_plot_check(&p, &names, a.plot_metric, a.plot_x, a.plot_series, perr, sizeof perr) != 0) {
