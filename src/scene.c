@@ -516,6 +516,12 @@ static int parse_fluid(loader *L, const mapv *top)
     f->iterations = (int)it;
     if (get_num(L, &m, "settle", R_NONNEG, &L->s->settle) < 0) return SCENE_BAD;
     if (L->s->settle > 10) return fail_value(L, &m, "settle", "must be in [0, 10] s");
+    if (!(L->s->settle / L->s->dt < STF_MAX_STEPS + 0.5)) {
+        char why[160];
+        snprintf(why, sizeof why, "%g s is %.3g steps of dt = %g s, more than %ld, the most a "
+                 "run takes", L->s->settle, L->s->settle / L->s->dt, L->s->dt, STF_MAX_STEPS);
+        return fail_value(L, &m, "settle", why);
+    }
     return parse_blocks(L, &m);
 }
 
@@ -1111,6 +1117,37 @@ static void file_stem(const char *path, char *out, size_t n)
     out[len] = '\0';
 }
 
+long stf_run_steps(double duration, double dt, char *err, size_t errlen)
+{
+    char dummy[8];
+    if (!err || !errlen) err = dummy, errlen = sizeof dummy;
+    if (!(duration > 0) || !isfinite(duration) || !(dt > 0) || !isfinite(dt)) {
+        snprintf(err, errlen, "a duration of %g s at dt = %g s: both must be finite numbers > 0",
+                 duration, dt);
+        return -1;
+    }
+    double n = duration / dt;
+    if (n < 0.5) {
+        snprintf(err, errlen, "%g s is %.3g steps of dt = %g s, 0 once rounded (a run takes at "
+                 "least 1 step: %g s or more)", duration, n, dt, dt / 2);
+        return -1;
+    }
+    if (!(n < STF_MAX_STEPS + 0.5)) {
+        snprintf(err, errlen, "%g s is %.3g steps of dt = %g s, more than %ld, the most a run "
+                 "takes (at most %g s at this dt)", duration, n, dt, STF_MAX_STEPS,
+                 (double)STF_MAX_STEPS * dt);
+        return -1;
+    }
+    return lround(n);
+}
+
+/* 1 when key of m was given by an override (--set), not by the file. */
+static int set_here(const mapv *m, const char *key)
+{
+    struct fy_node *k, *v = lookup(m, key, &k);
+    return k && (node_override(k) >= 0 || node_override(v) >= 0);
+}
+
 static int parse_scene(loader *L)
 {
     static const char *const keys[] = {
@@ -1140,6 +1177,19 @@ static int parse_scene(loader *L)
         snprintf(what, sizeof what, "must be <= 1/%s = %g (one frame per step at most)",
                  rate ? "dt" : "frame_rate", rate ? 1 / s->dt : 1 / s->frame_rate);
         return fail_value(L, &top, rate ? "frame_rate" : "dt", what);
+    }
+    /* the run's step count and its steps between frames must be counts it can take (a
+       duration of 1e300 s overflowed the count and ran 0 steps) */
+    char why[256];
+    if (stf_run_steps(s->duration, s->dt, why, sizeof why) < 0)
+        return fail_value(L, &top, set_here(&top, "dt") && !set_here(&top, "duration")
+                                       ? "dt" : "duration", why);
+    if (!(1 / (s->frame_rate * s->dt) < STF_MAX_STEPS + 0.5)) {
+        int rate = has(&top, "frame_rate");
+        snprintf(why, sizeof why, "a frame every %.3g steps of dt = %g s (1 / (frame_rate dt)): "
+                 "more than %ld, the most a run takes (frame_rate must be >= %g)",
+                 1 / (s->frame_rate * s->dt), s->dt, STF_MAX_STEPS, 1 / (STF_MAX_STEPS * s->dt));
+        return fail_value(L, &top, rate ? "frame_rate" : "dt", why);
     }
     s->fluid = stf_default_fluid_def();
     if (parse_fluid(L, &top) || parse_effects(L, &top) || parse_container(L, &top) ||

@@ -448,6 +448,16 @@ typedef struct stf_override {
     const char *value; /* a YAML scalar or flow sequence, NULL to remove the key */
 } stf_override;
 
+/* The most steps of dt a run takes (a duration, a frame interval, fluid.settle): beyond, a
+ * step count would not fit the counters of a run and its file (and would not end). */
+#define STF_MAX_STEPS 1000000000L
+
+/* The steps of a run of `duration` seconds at dt: round(duration / dt). -1 with the reason
+ * in err when that is not a count a run can take (1 .. STF_MAX_STEPS), or duration or dt is
+ * not a finite number > 0. The scene loader holds a scene's own duration to it; a tool that
+ * runs a scene for another duration (stf run --duration) holds that one. */
+long stf_run_steps(double duration, double dt, char *err, size_t errlen);
+
 /* Loads and checks a scene. Returns 0; or 2 (bad input) with
  * "FILE:LINE:COL: KEY: what is wrong (allowed: ...)" in err. */
 int stf_scene_load(const char *path, const stf_override *ov, int nov, stf_scene **out, char *err,

@@ -111,6 +111,41 @@ static void test_nesting(void)
     free(map);
 }
 
+/* A run's step counts: round(duration / dt) in 1 .. STF_MAX_STEPS (1e300 s overflowed the
+ * count and ran 0 steps), the steps between frames and fluid.settle's steps at most that. */
+static void test_steps(void)
+{
+#define STEPS_SCENE(top, fluid)                                                               \
+    top "fluid:\n  spacing: 0.01\n" fluid                                                     \
+        "  blocks: [{min: [0, 0, 0], max: [0.1, 0.1, 0.1]}]\neffects: {}\n"
+    expect("1e9 steps", STEPS_SCENE("duration: 1000000\n", ""), NULL, 0, 0, NULL, NULL);
+    expect("1e300 s", STEPS_SCENE("duration: 1e300\n", ""), NULL, 0, 2, "f.yaml:1:11: duration: ",
+           "more than 1000000000");
+    expect("1e9 + 1 steps", STEPS_SCENE("duration: 1000000.001\n", ""), NULL, 0, 2,
+           "f.yaml:1:11: duration: ", "more than 1000000000");
+    expect("0 steps", STEPS_SCENE("duration: 0.0004\n", ""), NULL, 0, 2, "f.yaml:1:11: duration: ",
+           "0 once rounded");
+    expect("tiny dt", STEPS_SCENE("duration: 1\ndt: 1e-300\n", ""), NULL, 0, 2,
+           "f.yaml:1:11: duration: ", "1e+300 steps");
+    stf_override dt = {"dt", "1e-300"}, dur = {"duration", "1e300"};
+    expect("--set dt", STEPS_SCENE("duration: 1\n", ""), &dt, 1, 2, "--set dt=1e-300: dt: ",
+           "more than");
+    expect("--set duration", STEPS_SCENE("duration: 1\n", ""), &dur, 1, 2,
+           "--set duration=1e300: duration: ", "more than");
+    expect("frame_rate", STEPS_SCENE("duration: 1\nframe_rate: 1e-12\n", ""), NULL, 0, 2,
+           "f.yaml:2:13: frame_rate: ", "a frame every");
+    expect("settle", STEPS_SCENE("duration: 0.1\ndt: 1e-9\n", "  settle: 10\n"), NULL, 0, 2,
+           "f.yaml:5:11: fluid.settle: ", "more than");
+#undef STEPS_SCENE
+    char err[256];
+    CHECK(stf_run_steps(2.0, 0.001, err, sizeof err) == 2000, "2 s at 1 ms: %s", err);
+    CHECK(stf_run_steps(1e300, 0.001, err, sizeof err) == -1 && strstr(err, "more than"),
+          "1e300 s: %s", err);
+    CHECK(stf_run_steps(INFINITY, 0.001, err, sizeof err) == -1 && strstr(err, "finite"),
+          "inf s: %s", err);
+    CHECK(stf_run_steps(1, 0, NULL, 0) == -1, "dt 0");
+}
+
 int main(void)
 {
     signal(SIGALRM, on_alarm);
@@ -118,5 +153,6 @@ int main(void)
     test_utf8();
     test_aliases();
     test_nesting();
+    test_steps();
     return test_result("test_scene_limits");
 }

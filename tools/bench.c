@@ -62,12 +62,152 @@ typedef struct bench_args {
     int repeat;        /* table1, effects, scaling: rounds over the rows (interleaved); each
                           row's fastest run counts */
     double duration;   /* accuracy: simulated seconds, 0 = default */
+    const char *duration_arg; /* its text */
     double error;      /* accuracy: error budget, m */
     const char *knobs; /* accuracy: comma list of dt, spacing, history, solver */
     int grow_domain;   /* scaling: 10x the particles by a wider pool (1) or a finer spacing */
     double tolerance;  /* convergence: relative difference from the finest run allowed */
     int jobs;          /* convergence: child runs at a time (1: one after the other) */
 } bench_args;
+
+/* ------------------------------------------------------------------------- usage */
+
+#define BENCH_OV                                                                              \
+    "  --set KEY=VALUE, --unset KEY   scene overrides, as for stf run (at most 64 in all)\n"
+#define BENCH_THREADS "  --threads N    OpenMP threads, 1 to 1024 (default: OpenMP's, OMP_NUM_THREADS)\n"
+#define BENCH_TIMING                                                                          \
+    "  --steps N      timed steps, 1 to 1000000 (default 32, --full 224); with a history\n"      \
+    "                 window, up to whole history time blocks (the count is printed)\n"         \
+    "  --warmup N     steps run before the timing, 0 to 1000000 (default 50: the bowling ball\n"\
+    "                 reaches the pool, so that the impact is timed)\n"                          \
+    "  --repeat R     rounds over all the rows, 1 to 100 (default 1), interleaved; each row\n"  \
+    "                 shows its fastest run\n"                                                   \
+    "  --full         the long version: 224 timed steps\n"
+#define BENCH_EXIT(one)                                                                       \
+    "exit codes: 0 done" one ", 2 bad input, 3 numerical failure\n"
+
+static const cli_usage bench_usage = {
+    "bench",
+    "usage: stf bench table1 [BOWLING.yaml] [OPTIONS]\n"
+    "       stf bench effects|accuracy|scaling|grid|dam|convergence SCENE [OPTIONS]\n",
+    "What accuracy costs in time. Timings run in this process (no output file); accuracy and\n"
+    "convergence run stf run child processes and read their files back.\n"
+    "  table1 [BOWLING.yaml]  the paper's Table 1: time per step, time and memory of the history\n"
+    "                         terms at d = 0, 50, 150, 500 (and soe), bowling ball and a layer\n"
+    "  effects SCENE          the cost of each effect, turning them off one at a time\n"
+    "  accuracy SCENE         error against wall time for dt, spacing, history mode, solvers\n"
+    "  scaling SCENE          the step at the scene's particles and at 10x as many\n"
+    "  grid SCENE             the neighbour search alone, at the scene's particles and 10x\n"
+    "  dam SCENE              Carreau-Yasuda solver speed at 1 and 2 threads\n"
+    "  convergence SCENE      every metric at dt, dt/2, dt/4 and 1.5x the spacing, each within\n"
+    "                         --tolerance of dt/4's or not\n"
+    "stf bench NAME --help: NAME's options, their units and defaults.\n"
+    "exit codes: 0 done, 1 effects: an effect that is off costs time or memory; convergence: a\n"
+    "metric not within the tolerance, 2 bad input, 3 numerical failure\n"};
+
+static const cli_usage bench_usages[] = {
+    {"bench table1", "usage: stf bench table1 [BOWLING.yaml] [--steps N] [--warmup N] [--repeat R] [--full]\n"
+                     "                        [--threads N] [--set KEY=VALUE]... [--unset KEY]...\n",
+     "The paper's Table 1 on the bowling ball (BOWLING.yaml, default scenes/bowling_ball.yaml\n"
+     "from the current directory) and a built-in vibrated layer of about 20K particles: the\n"
+     "time per step without the history terms (ms), the time of the history terms (ms) and\n"
+     "the history memory (MB, 12 n d) at d = 0, 50, 150, 500 and in soe mode (16 terms), next\n"
+     "to the paper's figures. The overrides apply to both scenes.\n"
+     "options:\n" BENCH_TIMING BENCH_THREADS BENCH_OV BENCH_EXIT("")},
+    {"bench effects", "usage: stf bench effects SCENE [--steps N] [--warmup N] [--repeat R] [--full]\n"
+                      "                         [--threads N] [--set KEY=VALUE]... [--unset KEY]...\n",
+     "The cost of each effect of SCENE: the scene as it is, then without each of its effects in\n"
+     "turn (without springs also without history): wall and cpu ms per step, ms per stage and\n"
+     "each effect's storage (bytes). An effect that is off must cost nothing: checked.\n"
+     "options:\n" BENCH_TIMING BENCH_THREADS BENCH_OV
+     BENCH_EXIT(", 1 an effect that is off cost time or memory")},
+    {"bench accuracy",
+     "usage: stf bench accuracy SCENE [-o DIR] [--duration S] [--error M] [--knobs LIST] [--full]\n"
+     "                          [--threads N] [--set KEY=VALUE]... [--unset KEY]...\n",
+     "Error against cost: SCENE run (stf run child processes) at dt x 0.25, 0.5, 1, 2; at\n"
+     "spacing x 0.6, 0.8, 1, 1.4; with the history full, in windows of d = 500, 150, 50, 10 and\n"
+     "soe of 16, 8, 4 terms (scenes with effects.history); with the Carreau-Yasuda solvers'\n"
+     "tolerances x 0.1, 0.3, 1, 3 (carreau_yasuda scenes). A run's error is the RMS distance\n"
+     "(m) of the first body's path (the fluid's centre of mass without bodies) from the\n"
+     "knob's finest run. Writes DIR/runNN.h5, DIR/accuracy.csv and DIR/accuracy.png and names\n"
+     "each knob's cheapest setting within --error.\n"
+     "options:\n"
+     "  -o DIR         the runs, the table and the plot (default bench_accuracy)\n"
+     "  --duration S   simulated seconds of each run (default: the scene's, at most 0.6 s;\n"
+     "                 --full: the scene's); at most 1e9 steps of the finest dt\n"
+     "  --error M      the error budget, m, > 0 (default 0.01)\n"
+     "  --knobs LIST   a comma list of dt, spacing, history, solver (default: all four)\n"
+     "  --full         the scene's spacing and duration (default: a spacing of at least\n"
+     "                 0.025 m and at most 0.6 s)\n"
+     BENCH_THREADS BENCH_OV "exit codes: 0 done (a failed run is shown as failed), 2 bad input\n"},
+    {"bench scaling",
+     "usage: stf bench scaling SCENE [--grow spacing|domain] [--steps N] [--warmup N] [--repeat R]\n"
+     "                         [--full] [--threads N] [--set KEY=VALUE]... [--unset KEY]...\n",
+     "The step at SCENE's particles and at about 10x as many: wall and cpu ms per step,\n"
+     "particles per second, substeps, neighbour rebuilds, neighbours and springs per particle,\n"
+     "ms per stage.\n"
+     "options:\n"
+     "  --grow spacing|domain   10x the particles by spacing / 10^(1/3) (spacing, the default)\n"
+     "                 or by a pool sqrt(10) times wider in x and y at the same spacing (domain:\n"
+     "                 needs a container and box blocks)\n"
+     BENCH_TIMING BENCH_THREADS BENCH_OV BENCH_EXIT("")},
+    {"bench grid", "usage: stf bench grid SCENE [--steps N] [--full] [--threads N] [--set KEY=VALUE]...\n"
+                   "                      [--unset KEY]...\n",
+     "The neighbour search alone on SCENE's initial particles: N candidate rebuilds (each with\n"
+     "its filter) and N filters, at the scene's spacing and at spacing / 10^(1/3) (10x the\n"
+     "particles); cpu ms per call, candidates and neighbours per particle.\n"
+     "options:\n"
+     "  --steps N      N, 1 to 1000000 (default 32, --full 224)\n"
+     "  --full         N = 224\n" BENCH_THREADS BENCH_OV BENCH_EXIT("")},
+    {"bench dam", "usage: stf bench dam SCENE [--duration S] [--threads N] [--set KEY=VALUE]... [--unset KEY]...\n",
+     "Carreau-Yasuda solver speed (issue 8) on SCENE (fluid.model: carreau_yasuda) from rest,\n"
+     "in this process: wall and cpu seconds per simulated second, substeps per simulated\n"
+     "second, ms per substep, pressure iterations, density error, dt range, CFL number, peak\n"
+     "memory and neighbour rebuilds; one row at 1 thread and one at 2.\n"
+     "options:\n"
+     "  --duration S   simulated seconds, round(S / dt) steps, 1 to 1e9 (default 0.2)\n"
+     "  --threads N    one row at N threads, 1 to 1024, instead of the two\n" BENCH_OV
+     BENCH_EXIT("")},
+    {"bench convergence",
+    "usage: stf bench convergence SCENE [--set KEY=VALUE]... [--unset KEY]... [--duration S]\n"
+    "                             [--threads N] [--jobs N] [-o DIR] [--tolerance FRAC]\n",
+    "Runs SCENE four times, as `stf run` child processes: at its dt and spacing (column \"dt\"),\n"
+    "at dt/2, at dt/4 (the finest run) and at its dt with 1.5x its spacing (\"1.5x_spacing\"),\n"
+    "by --set dt=... and --set fluid.spacing=... after your own --set's. It prints every metric\n"
+    "of the runs (those of `stf report`: each body's, then the fluid's) side by side, one row a\n"
+    "metric and one column a run, then:\n"
+    "  range   max - min over the runs, in the metric's unit\n"
+    "  spread  range / |the dt/4 run's value|, in %; \"n/a\" when the metric is null in every\n"
+    "          run, \"DIFFERS\" when it is null in some runs only (a ball that sinks at one\n"
+    "          resolution and not at another); \"-\" when the dt/4 value is 0\n"
+    "  ok      \"yes\" when every run is within the tolerance of the dt/4 run:\n"
+    "            |v - v_dt/4| <= FRAC |v_dt/4|; when v_dt/4 is 0: |v| <= FRAC S, S a scale of\n"
+    "            the unit: the body's radius (a body's lengths), the scene's spacing (the\n"
+    "            fluid's lengths), the simulated duration (times), 1 m/s, 1 (rolling_ratio);\n"
+    "            counts (bounces, escaped): equal, or all >= 1 (it bounces in every run);\n"
+    "            null in every run is ok, null in some runs only (DIFFERS) is not;\n"
+    "          \"no\" otherwise; \"-\" not judged (fluid.particles: the spacing sets it)\n"
+    "and each run's dt, spacing, wall and cpu seconds, steps, substeps and particles. The same\n"
+    "table goes to DIR/convergence.csv (null: an empty field).\n"
+    "options:\n"
+    "  --duration S      simulated seconds of each run (default: the scene's duration);\n"
+    "                    round(S / (dt / 4)) steps at most 1e9\n"
+    "  --tolerance FRAC  the relative tolerance, a fraction >= 0 (default 0.2: 20%)\n"
+    "  --jobs N          child runs at a time, 1 to 4 (default 1: one after the other, so that\n"
+    "                    each run's wall seconds are its own)\n"
+    "  --threads N       OpenMP threads of each run, 1 to 1024 (default: OpenMP's)\n"
+    "  --set KEY=VALUE, --unset KEY   scene overrides of every run, as for stf run (at most\n"
+    "                    64 in all)\n"
+    "  -o DIR            the runs (run0.h5 .. run3.h5, columns in order) and convergence.csv\n"
+    "                    (default: convergence-NAME, NAME the scene's name); an existing\n"
+    "                    directory is used and its files of those names overwritten, as\n"
+    "                    `stf bench accuracy -o` does\n"
+    "A history memory given in steps (effects.history.d) halves in seconds with dt: a warning\n"
+    "says so and the runs go on; give effects.history.memory (s) to keep it. The scene's\n"
+    "dt_control and substep settings stay as they are.\n"
+    "exit codes: 0 every metric ok, 1 some metric not within the tolerance, 2 bad input (or a\n"
+    "run refused its settings), 3 a run failed numerically\n"},
+};
 
 /* The accuracy benchmark's knobs, in the order they run and are drawn. */
 enum { NKNOBS = 4 };
@@ -80,10 +220,19 @@ static int knob_index(const char *name)
     return -1;
 }
 
-static int bad(const char *msg, const char *arg)
+/* The usage of benchmark what, or bench's own (NULL: no benchmark, or
+ * an unknown one). */
+static const cli_usage *usage_for(const char *what)
 {
-    fprintf(stderr, "stf bench: %s '%s'\n", msg, arg);
-    return 2;
+    for (size_t k = 0; what && k < sizeof bench_usages / sizeof *bench_usages; k++)
+        if (!strcmp(what, bench_usages[k].cmd + 6)) return &bench_usages[k];
+    return &bench_usage;
+}
+
+/* A usage error of benchmark what (NULL: of stf bench). Returns 2. */
+static int bad_of(const char *what, const char *msg, const char *arg)
+{
+    return cli_usage_error(usage_for(what), "%s '%s'", msg, arg);
 }
 
 /* The benchmarks that read each of these options; the others refuse it rather than ignore it.
@@ -108,8 +257,8 @@ static int not_for(const char *what, const char *s)
         snprintf(word, sizeof word, " %s ", what);
         snprintf(list, sizeof list, " %s ", option_users[k].users);
         if (strstr(list, word)) return 0;
-        fprintf(stderr, "stf bench %s: %s does not apply to it (only to: %s)\n", what, s,
-                option_users[k].users);
+        cli_usage_error(usage_for(what), "%s does not apply to it (only to: %s)", s,
+                        option_users[k].users);
         return 1;
     }
     return 0;
@@ -122,12 +271,13 @@ static int parse(int argc, char **argv, bench_args *a)
     a->tolerance = 0.2;
     a->jobs = 1;
     if (argc < 1)
-        return bad("needs one of table1, effects, accuracy, scaling, grid, dam, convergence; got", "");
+        return cli_usage_error(&bench_usage, "no benchmark given (one of table1, effects, accuracy, "
+                                             "scaling, grid, dam, convergence)");
     a->what = argv[0];
     if (strcmp(a->what, "table1") && strcmp(a->what, "effects") && strcmp(a->what, "accuracy") &&
         strcmp(a->what, "scaling") && strcmp(a->what, "grid") && strcmp(a->what, "dam") &&
         strcmp(a->what, "convergence"))
-        return bad("unknown benchmark (allowed: table1, effects, accuracy, scaling, grid, dam, "
+        return bad_of(NULL, "unknown benchmark (allowed: table1, effects, accuracy, scaling, grid, dam, "
                    "convergence):", a->what);
     for (int i = 1; i < argc; i++) {
         const char *s = argv[i];
@@ -137,76 +287,89 @@ static int parse(int argc, char **argv, bench_args *a)
         if ((!strcmp(s, "-o") || !strcmp(s, "--out")) && more) a->out = argv[++i];
         else if (!strcmp(s, "--set") && more) {
             char *eq = strchr(argv[++i], '=');
-            if (!eq) return bad("--set needs KEY=VALUE, got", argv[i]);
-            if (a->nov == MAX_OV) return bad("too many overrides at", argv[i]);
+            if (!eq) return bad_of(a->what, "--set needs KEY=VALUE, got", argv[i]);
+            if (a->nov == MAX_OV) return bad_of(a->what, "too many overrides at", argv[i]);
             *eq = 0;
             a->ov[a->nov].key = argv[i];
             a->ov[a->nov++].value = eq + 1;
         } else if (!strcmp(s, "--unset") && more) {
-            if (a->nov == MAX_OV) return bad("too many overrides at", argv[i + 1]);
+            if (a->nov == MAX_OV) return bad_of(a->what, "too many overrides at", argv[i + 1]);
             a->ov[a->nov].key = argv[++i];
             a->ov[a->nov++].value = NULL;
         } else if (!strcmp(s, "--threads") && more) {
             long t = strtol(argv[++i], &end, 10);
-            if (*end || t < 1 || t > 1024) return bad("--threads must be an integer in [1,1024], got", argv[i]);
+            if (*end || t < 1 || t > 1024) return bad_of(a->what, "--threads must be an integer in [1,1024], got", argv[i]);
             a->threads = (int)t;
         } else if (!strcmp(s, "--steps") && more) {
             long t = strtol(argv[++i], &end, 10);
-            if (*end || t < 1 || t > 1000000) return bad("--steps must be an integer >= 1, got", argv[i]);
+            if (*end || t < 1 || t > 1000000) return bad_of(a->what, "--steps must be an integer >= 1, got", argv[i]);
             a->steps = (int)t;
         } else if (!strcmp(s, "--warmup") && more) {
             long t = strtol(argv[++i], &end, 10);
-            if (*end || t < 0 || t > 1000000) return bad("--warmup must be an integer >= 0, got", argv[i]);
+            if (*end || t < 0 || t > 1000000) return bad_of(a->what, "--warmup must be an integer >= 0, got", argv[i]);
             a->warmup = (int)t;
             a->warmup_set = 1;
         } else if (!strcmp(s, "--repeat") && more) {
             long t = strtol(argv[++i], &end, 10);
-            if (*end || t < 1 || t > 100) return bad("--repeat must be an integer in [1,100], got", argv[i]);
+            if (*end || t < 1 || t > 100) return bad_of(a->what, "--repeat must be an integer in [1,100], got", argv[i]);
             a->repeat = (int)t;
         } else if (!strcmp(s, "--duration") && more) {
-            a->duration = strtod(argv[++i], &end);
+            a->duration = strtod(a->duration_arg = argv[++i], &end);
             if (*end || !(a->duration > 0) || !isfinite(a->duration))
-                return bad("--duration must be a number of seconds > 0, got", argv[i]);
+                return bad_of(a->what, "--duration must be a number of seconds > 0, got", argv[i]);
         } else if (!strcmp(s, "--error") && more) {
             a->error = strtod(argv[++i], &end);
             if (*end || !(a->error > 0) || !isfinite(a->error))
-                return bad("--error must be a distance in m > 0, got", argv[i]);
+                return bad_of(a->what, "--error must be a distance in m > 0, got", argv[i]);
         } else if (!strcmp(s, "--knobs") && more) {
             a->knobs = argv[++i];
             /* a comma list of known knobs, each once at most */
             char buf[256];
-            if (strlen(a->knobs) >= sizeof buf) return bad("--knobs: too long:", a->knobs);
+            if (strlen(a->knobs) >= sizeof buf) return bad_of(a->what, "--knobs: too long:", a->knobs);
             strcpy(buf, a->knobs);
             char *save = NULL;
             for (char *k = strtok_r(buf, ",", &save); k; k = strtok_r(NULL, ",", &save))
                 if (knob_index(k) < 0)
-                    return bad("--knobs: a comma list of dt, spacing, history, solver; unknown", k);
-            if (!a->knobs[0]) return bad("--knobs: empty list", a->knobs);
+                    return bad_of(a->what, "--knobs: a comma list of dt, spacing, history, solver; unknown", k);
+            if (!a->knobs[0]) return bad_of(a->what, "--knobs: empty list", a->knobs);
         } else if (!strcmp(s, "--grow") && more) {
             const char *g = argv[++i];
             if (strcmp(g, "spacing") && strcmp(g, "domain"))
-                return bad("--grow must be spacing or domain, got", g);
+                return bad_of(a->what, "--grow must be spacing or domain, got", g);
             a->grow_domain = !strcmp(g, "domain");
         } else if (!strcmp(s, "--tolerance") && more) {
             a->tolerance = strtod(argv[++i], &end);
             if (*end || end == argv[i] || !(a->tolerance >= 0) || !isfinite(a->tolerance))
-                return bad("--tolerance must be a fraction >= 0 (0.2: 20%), got", argv[i]);
+                return bad_of(a->what, "--tolerance must be a fraction >= 0 (0.2: 20%), got", argv[i]);
         } else if (!strcmp(s, "--jobs") && more) {
             long t = strtol(argv[++i], &end, 10);
-            if (*end || t < 1 || t > 4) return bad("--jobs must be an integer in [1,4], got", argv[i]);
+            if (*end || t < 1 || t > 4) return bad_of(a->what, "--jobs must be an integer in [1,4], got", argv[i]);
             a->jobs = (int)t;
         } else if (!strcmp(s, "--full")) a->full = 1;
-        else if (s[0] == '-') return bad("unknown or incomplete option", s);
+        else if (s[0] == '-') return bad_of(a->what, "unknown or incomplete option", s);
         else if (!a->scene) a->scene = s;
-        else return bad("unexpected argument", s);
+        else return bad_of(a->what, "unexpected argument", s);
     }
-    if (!a->scene && strcmp(a->what, "table1")) return bad("needs a scene file after", a->what);
+    if (!a->scene && strcmp(a->what, "table1")) return bad_of(a->what, "needs a scene file after", a->what);
     if (!a->steps) a->steps = a->full ? 224 : 32; /* whole history time blocks (16 or 32 steps) */
     /* 50 steps: the bowling ball reaches the pool (t = 0.05 s), so the timed steps include
        the impact rather than a pool at rest */
     if (!a->warmup_set) a->warmup = 50;
     if (!a->repeat) a->repeat = 1;
     return 0;
+}
+
+/* Refuses a run duration whose step count round(duration / dt) is not one a run can take
+ * (stf_run_steps); whence names where the duration came from when not from --duration.
+ * Returns 0, or 2 with a message. */
+static int check_duration(const bench_args *a, double duration, double dt, const char *whence)
+{
+    char why[512];
+    if (stf_run_steps(duration, dt, why, sizeof why) >= 0) return 0;
+    if (a->duration > 0)
+        fprintf(stderr, "stf bench %s: --duration %s: %s\n", a->what, a->duration_arg, why);
+    else fprintf(stderr, "stf bench %s: %s: %s: %s\n", a->what, a->scene, whence, why);
+    return 2;
 }
 
 /* ------------------------------------------------------------------ in-process timing */
@@ -965,6 +1128,10 @@ static int bench_accuracy(const bench_args *a, const char *self)
     double eta = sc->fluid.cy.eta, cg_tol = sc->fluid.cy.cg_tolerance;
     double duration = a->duration > 0 ? a->duration : a->full ? sc->duration : fmin(sc->duration, 0.6);
     stf_scene_free(sc);
+    /* the finest dt run (dt / 4) takes the most steps */
+    const char *knobs_in = a->knobs ? a->knobs : "dt";
+    if (check_duration(a, duration, strstr(knobs_in, "dt") ? dt / 4 : dt, "its duration") != 0)
+        return 2;
     /* Short by default: the spacing the cli_bowling test uses and 0.6 s (the impact). */
     double base_sp = a->full ? sp : fmax(sp, 0.025);
     const char *dir = a->out ? a->out : "bench_accuracy";
@@ -1135,42 +1302,6 @@ enum { NCONV = 4, CONV_FINEST = 2 };
 static const char *const conv_names[NCONV] = {"dt", "dt/2", "dt/4", "1.5x_spacing"};
 static const double conv_dt[NCONV] = {1, 0.5, 0.25, 1}, conv_sp[NCONV] = {1, 1, 1, 1.5};
 
-static const char convergence_usage[] =
-    "usage: stf bench convergence SCENE [--set KEY=VALUE]... [--unset KEY]... [--duration S]\n"
-    "                             [--threads N] [--jobs N] [-o DIR] [--tolerance FRAC]\n"
-    "Runs SCENE four times, as `stf run` child processes: at its dt and spacing (column \"dt\"),\n"
-    "at dt/2, at dt/4 (the finest run) and at its dt with 1.5x its spacing (\"1.5x_spacing\"),\n"
-    "by --set dt=... and --set fluid.spacing=... after your own --set's. It prints every metric\n"
-    "of the runs (those of `stf report`: each body's, then the fluid's) side by side, one row a\n"
-    "metric and one column a run, then:\n"
-    "  range   max - min over the runs, in the metric's unit\n"
-    "  spread  range / |the dt/4 run's value|, in %; \"n/a\" when the metric is null in every\n"
-    "          run, \"DIFFERS\" when it is null in some runs only (a ball that sinks at one\n"
-    "          resolution and not at another); \"-\" when the dt/4 value is 0\n"
-    "  ok      \"yes\" when every run is within the tolerance of the dt/4 run:\n"
-    "            |v - v_dt/4| <= FRAC |v_dt/4|; when v_dt/4 is 0: |v| <= FRAC S, S a scale of\n"
-    "            the unit: the body's radius (a body's lengths), the scene's spacing (the\n"
-    "            fluid's lengths), the simulated duration (times), 1 m/s, 1 (rolling_ratio);\n"
-    "            counts (bounces, escaped): equal, or all >= 1 (it bounces in every run);\n"
-    "            null in every run is ok, null in some runs only (DIFFERS) is not;\n"
-    "          \"no\" otherwise; \"-\" not judged (fluid.particles: the spacing sets it)\n"
-    "and each run's dt, spacing, wall and cpu seconds, steps, substeps and particles. The same\n"
-    "table goes to DIR/convergence.csv (null: an empty field).\n"
-    "options:\n"
-    "  --duration S      simulated seconds of each run (default: the scene's duration)\n"
-    "  --tolerance FRAC  the relative tolerance, a fraction >= 0 (default 0.2: 20%)\n"
-    "  --jobs N          child runs at a time, 1 to 4 (default 1: one after the other, so that\n"
-    "                    each run's wall seconds are its own)\n"
-    "  --threads N       OpenMP threads of each run\n"
-    "  -o DIR            the runs (run0.h5 .. run3.h5, columns in order) and convergence.csv\n"
-    "                    (default: convergence-NAME, NAME the scene's name); an existing\n"
-    "                    directory is used and its files of those names overwritten, as\n"
-    "                    `stf bench accuracy -o` does\n"
-    "A history memory given in steps (effects.history.d) halves in seconds with dt: a warning\n"
-    "says so and the runs go on; give effects.history.memory (s) to keep it. The scene's\n"
-    "dt_control and substep settings stay as they are.\n"
-    "exit codes: 0 every metric ok, 1 some metric not within the tolerance, 2 bad input (or a\n"
-    "run refused its settings), 3 a run failed numerically\n";
 
 /* One metric row: its key for stf_metrics_get, its name in the lists of metrics.h, and its
  * body (index into the metrics' bodies, -1 for the fluid). */
@@ -1250,6 +1381,7 @@ static int bench_convergence(const bench_args *a, const char *self)
     char dirbuf[128];
     snprintf(dirbuf, sizeof dirbuf, "convergence-%s", sc->name);
     stf_scene_free(sc);
+    if (check_duration(a, duration, dt * conv_dt[CONV_FINEST], "its duration") != 0) return 2;
     if (steps_memory)
         fprintf(stderr, "memory given in steps (d = %d): dt/2 and dt/4 change the memory in "
                 "seconds; give effects.history.memory\n", d);
@@ -1500,6 +1632,15 @@ static int dam_row(const bench_args *a, double duration, int threads)
 static int bench_dam(const bench_args *a)
 {
     double duration = a->duration > 0 ? a->duration : 0.2;
+    char err[2048];
+    stf_scene *sc;
+    if (stf_scene_load(a->scene, a->ov, a->nov, &sc, err, sizeof err) != 0) {
+        fprintf(stderr, "%s\n", err);
+        return 2;
+    }
+    int bad_steps = check_duration(a, duration, sc->dt, "the default duration, 0.2 s,");
+    stf_scene_free(sc);
+    if (bad_steps) return 2;
     printf("# stf bench dam %s: %.3g simulated s from rest (--duration)\n", a->scene, duration);
     print_load();
     printf("%7s %8s %10s %10s %9s %8s %8s %9s %9s %9s %9s %7s %8s %8s\n", "threads", "n",
@@ -1522,13 +1663,9 @@ static int bench_dam(const bench_args *a)
 
 int cli_bench(int argc, char **argv)
 {
+    /* stf bench --help, stf bench NAME ... --help */
+    if (cli_help_asked(argc, argv)) return cli_help(usage_for(argc >= 1 ? argv[0] : NULL));
     bench_args a;
-    if (argc >= 1 && !strcmp(argv[0], "convergence"))
-        for (int i = 1; i < argc; i++)
-            if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
-                fputs(convergence_usage, stdout);
-                return 0;
-            }
     if (parse(argc, argv, &a) != 0) return 2;
     if (a.threads) stf_set_threads(a.threads);
     if (!strcmp(a.what, "table1")) return bench_table1(&a);
@@ -1538,7 +1675,10 @@ int cli_bench(int argc, char **argv)
     if (!strcmp(a.what, "dam")) return bench_dam(&a);
     char self[4096];
     ssize_t len = readlink("/proc/self/exe", self, sizeof self - 1);
-    if (len <= 0) return bad("cannot find this executable", "/proc/self/exe");
+    if (len <= 0) {
+        fprintf(stderr, "stf bench: cannot find this executable (/proc/self/exe)\n");
+        return 2;
+    }
     self[len] = 0;
     if (!strcmp(a.what, "convergence")) return bench_convergence(&a, self);
     return bench_accuracy(&a, self);

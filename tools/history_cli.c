@@ -21,22 +21,27 @@
 #include "history.h"
 #include "stf.h"
 
-static const char *USAGE =
+static const cli_usage USAGE = {
+    "history",
     "usage: stf history [--fig 2|3|4|all] [-o DIR] [--q 0.2,0.5,0.8] [--d 50,150,500]\n"
-    "                   [--dt S] [--k-hist K] [--steps N] [--n N] [--profile FILE.csv]\n"
+    "                   [--dt S] [--k-hist K] [--steps N] [--n N] [--profile FILE.csv]\n",
+    "The single-particle analysis of the history springs (paper section 3.2, Figures 2-4),\n"
+    "with the simulation's own weights: CSV and PNG files in DIR.\n"
+    "options:\n"
     "  --fig      which figure(s) of paper section 3.2 (default all)\n"
     "  -o         output directory (default history_analysis)\n"
     "  --q        fractional orders, each in (0,1) (default 0.2,0.5,0.8)\n"
-    "  --d        history windows in steps, >= 1 ('full' or 0: full history; the full\n"
+    "  --d        history windows in steps, 1 to 1000000 ('full' or 0: full history; the full\n"
     "             history is always added) (default 50,150,500)\n"
-    "  --dt       time step in s (default 1/30)\n"
-    "  --k-hist   history stiffness constant k_hist (default 1)\n"
-    "  --steps    steps of the built-in profiles (default 300)\n"
-    "  --n        current step n of the weights of figure 2 (default 50)\n"
+    "  --dt       time step in s, > 0 and <= 1000 (default 1/30)\n"
+    "  --k-hist   history stiffness constant k_hist, >= 0 (default 1)\n"
+    "  --steps    steps of the built-in profiles, 2 to 1000000 (default 300)\n"
+    "  --n        current step n of the weights of figure 2, 1 to 100000 (default 50)\n"
     "  --profile  velocity profile instead of the built-in ones: one 'v' or 't,v' per line\n"
     "             (m/s, s; evenly spaced t sets dt), '#' comments, optional name header;\n"
     "             written as fig3_impact / fig4_constant with --fig 3 / 4, else as\n"
-    "             profile_stiffness.csv/.png (next to figure 2)";
+    "             profile_stiffness.csv/.png (next to figure 2)\n"
+    "exit codes: 0 written, 2 bad input (bad option or profile) or a write error\n"};
 
 #define MAXQ 8
 #define MAXD 8
@@ -716,6 +721,7 @@ static int figure_stiffness(const opts *o, int which, const profile *p, double d
 
 int cli_history(int argc, char **argv)
 {
+    if (cli_help_asked(argc, argv)) return cli_help(&USAGE);
     opts o = {0};
     o.dir = "history_analysis";
     o.nq = 3;
@@ -730,18 +736,11 @@ int cli_history(int argc, char **argv)
 
     for (int i = 0; i < argc; i++) {
         const char *a = argv[i];
-        if (!strcmp(a, "-h") || !strcmp(a, "--help")) {
-            puts(USAGE);
-            return 0;
-        }
-        if (a[0] != '-') {
-            fprintf(stderr, "stf history: unexpected argument '%s'\n%s\n", a, USAGE);
-            return 2;
-        }
+        if (a[0] != '-') return cli_usage_error(&USAGE, "unexpected argument '%s'", a);
         if (i + 1 >= argc) {
             static const char *const valued[] = {"--fig", "-o", "--q", "--d", "--dt", "--k-hist",
                                                  "--steps", "--n", "--profile", NULL};
-            return cli_missing_value("history", a, valued, USAGE);
+            return cli_missing_value(&USAGE, a, valued);
         }
         const char *val = argv[++i];
         if (!strcmp(a, "--fig")) {
@@ -786,8 +785,7 @@ int cli_history(int argc, char **argv)
         } else if (!strcmp(a, "--profile")) {
             o.profile = val;
         } else {
-            fprintf(stderr, "stf history: unknown option '%s'\n%s\n", a, USAGE);
-            return 2;
+            return cli_usage_error(&USAGE, "unknown option '%s'", a);
         }
     }
     if (o.profile && o.fig == 2) {

@@ -14,7 +14,18 @@
 #include "metrics.h"
 #include "pictures.h"
 
-static const char *USAGE = "usage: stf plot OUT.h5 [-o FILE.png] [--body NAME] [--width W] [--height H]";
+static const cli_usage USAGE = {
+    "plot", "usage: stf plot OUT.h5 [-o FILE.png] [--body NAME] [--width W] [--height H]\n",
+    "Draws a PNG of two panels: a body's centre height z(t) and its velocity (vz and the\n"
+    "horizontal speed), with the fluid's surface height, the first contact, the bounce peaks\n"
+    "and the sink time marked; without bodies, the fluid's centre of mass.\n"
+    "options:\n"
+    "  -o FILE.png   the picture (default: OUT_plot.png, OUT without .h5)\n"
+    "  --body NAME   which body (default: the scene's first)\n"
+    "  --width W     width in pixels, 320 to 8192 (default 1000)\n"
+    "  --height H    height in pixels, 320 to 8192 (default 760)\n"
+    "exit codes: 0 written, 2 bad input (bad option, unreadable file, no such body) or a write\n"
+    "error\n"};
 
 static const float BLACK[3] = {0.10f, 0.10f, 0.12f};
 static const float WHITE[3] = {1, 1, 1};
@@ -184,25 +195,19 @@ static int fluid_data(const stf_h5r *r, series *s, char *err, size_t errlen)
 
 int cli_plot(int argc, char **argv)
 {
+    if (cli_help_asked(argc, argv)) return cli_help(&USAGE);
     const char *in = NULL, *out_opt = NULL, *body = NULL;
     int width = 1000, height = 760;
     for (int i = 0; i < argc; i++) {
         const char *a = argv[i];
-        if (!strcmp(a, "-h") || !strcmp(a, "--help")) {
-            puts(USAGE);
-            return 0;
-        }
         if (a[0] != '-') {
-            if (in) {
-                fprintf(stderr, "stf plot: unexpected argument '%s'\n%s\n", a, USAGE);
-                return 2;
-            }
+            if (in) return cli_usage_error(&USAGE, "unexpected argument '%s'", a);
             in = a;
             continue;
         }
         if (i + 1 >= argc) {
             static const char *const valued[] = {"-o", "--body", "--width", "--height", NULL};
-            return cli_missing_value("plot", a, valued, USAGE);
+            return cli_missing_value(&USAGE, a, valued);
         }
         const char *val = argv[++i];
         if (!strcmp(a, "-o")) out_opt = val;
@@ -210,20 +215,14 @@ int cli_plot(int argc, char **argv)
         else if (!strcmp(a, "--width") || !strcmp(a, "--height")) {
             char *end;
             long v = strtol(val, &end, 10);
-            if (end == val || *end || v < 320 || v > 8192) {
-                fprintf(stderr, "stf plot: bad value '%s' for %s (320..8192)\n", val, a);
-                return 2;
-            }
+            if (end == val || *end || v < 320 || v > 8192)
+                return cli_usage_error(&USAGE, "bad value '%s' for %s (320..8192)", val, a);
             *(a[2] == 'w' ? &width : &height) = (int)v;
         } else {
-            fprintf(stderr, "stf plot: unknown option '%s'\n%s\n", a, USAGE);
-            return 2;
+            return cli_usage_error(&USAGE, "unknown option '%s'", a);
         }
     }
-    if (!in) {
-        fprintf(stderr, "stf plot: no output file given\n%s\n", USAGE);
-        return 2;
-    }
+    if (!in) return cli_usage_error(&USAGE, "no output file given");
 
     char err[1024];
     stf_h5r *r = NULL;

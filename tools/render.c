@@ -23,10 +23,32 @@
 #define M_PI 3.14159265358979323846
 #endif
 
-static const char *USAGE =
+static const cli_usage USAGE = {
+    "render",
     "usage: stf render OUT.h5 [-o DIR] [--frames all|N|A:B|a,b,...] [--every K] [--width W]\n"
     "                  [--height H] [--color speed|khist|none] [--max V] [--camera x,y,z]\n"
-    "                  [--look x,y,z] [--montage FILE.png]";
+    "                  [--look x,y,z] [--montage FILE.png]\n",
+    "Draws frames of a run's file (the particles, the bodies, the container) as PNG pictures,\n"
+    "DIR/frame_0000.png ..., and DIR/movie.mp4 (30 frames/s) when ffmpeg is on the PATH.\n"
+    "options:\n"
+    "  -o DIR               the pictures' directory, made if missing (default: OUT_frames, OUT\n"
+    "                       without .h5); frame_NNNN.png files after the new ones are removed\n"
+    "  --frames SPEC        the file's frames, from 0: all (default), N, A:B (inclusive, either\n"
+    "                       end may be left out) or a,b,c\n"
+    "  --every K            every K-th frame of all or A:B (K >= 1, default 1)\n"
+    "  --width W            picture width in pixels, 16 to 8192 (default 960, a montage's\n"
+    "                       panels 480)\n"
+    "  --height H           picture height in pixels, 16 to 8192 (default 720, montage 400)\n"
+    "  --color MODE         particle colour: speed (m/s), khist (history stiffness) or none\n"
+    "                       (default none: one colour)\n"
+    "  --max V              the top of the colour scale, > 0, in the colour's unit (default:\n"
+    "                       the 99th percentile over the frames drawn); needs --color\n"
+    "  --camera x,y,z       the eye, m (default: from -y and a little +x, 35 degrees up, far\n"
+    "                       enough to see the whole scene)\n"
+    "  --look x,y,z         the point looked at, m (default: the centre of the scene's bounds)\n"
+    "  --montage FILE.png   one picture of up to 16 frames, 4 a row, instead of DIR (default\n"
+    "                       frames: 4 spread over the run)\n"
+    "exit codes: 0 written, 2 bad input (bad option, unreadable file) or a write error\n"};
 
 enum color_mode { COLOR_NONE, COLOR_SPEED, COLOR_KHIST };
 
@@ -825,6 +847,7 @@ static int mkdirs(const char *dir)
 
 int cli_render(int argc, char **argv)
 {
+    if (cli_help_asked(argc, argv)) return cli_help(&USAGE);
     const char *in = NULL, *dir_opt = NULL, *frames_opt = NULL, *montage = NULL;
     int every = 1, width = 0, height = 0, color = COLOR_NONE, have_eye = 0, have_look = 0, every_given = 0;
     double vmax_opt = 0, eye[3], look[3];
@@ -833,21 +856,15 @@ int cli_render(int argc, char **argv)
         int has_val = i + 1 < argc;
         const char *val = has_val ? argv[i + 1] : NULL;
         int bad = 0;
-        if (!strcmp(a, "-h") || !strcmp(a, "--help")) {
-            puts(USAGE);
-            return 0;
-        } else if (a[0] != '-') {
-            if (in) {
-                fprintf(stderr, "stf render: unexpected argument '%s'\n%s\n", a, USAGE);
-                return 2;
-            }
+        if (a[0] != '-') {
+            if (in) return cli_usage_error(&USAGE, "unexpected argument '%s'", a);
             in = a;
             continue;
         } else if (!has_val) {
             static const char *const valued[] = {"-o", "--frames", "--montage", "--every", "--width",
                                                  "--height", "--camera", "--look", "--max", "--color",
                                                  NULL};
-            return cli_missing_value("render", a, valued, USAGE);
+            return cli_missing_value(&USAGE, a, valued);
         } else if (!strcmp(a, "-o")) dir_opt = val;
         else if (!strcmp(a, "--frames")) frames_opt = val;
         else if (!strcmp(a, "--montage")) montage = val;
@@ -866,19 +883,12 @@ int cli_render(int argc, char **argv)
             else if (!strcmp(val, "none")) color = COLOR_NONE;
             else bad = 1;
         } else {
-            fprintf(stderr, "stf render: unknown option '%s'\n%s\n", a, USAGE);
-            return 2;
+            return cli_usage_error(&USAGE, "unknown option '%s'", a);
         }
-        if (bad) {
-            fprintf(stderr, "stf render: bad value '%s' for %s\n%s\n", val, a, USAGE);
-            return 2;
-        }
+        if (bad) return cli_usage_error(&USAGE, "bad value '%s' for %s", val, a);
         i++;
     }
-    if (!in) {
-        fprintf(stderr, "stf render: no output file given\n%s\n", USAGE);
-        return 2;
-    }
+    if (!in) return cli_usage_error(&USAGE, "no output file given");
     if ((width > 8192 || height > 8192)) {
         fprintf(stderr, "stf render: --width/--height at most 8192\n");
         return 2;

@@ -26,21 +26,28 @@ static void line(const char *name, double v, const char *unit)
     else printf("  %-22s %.4g %s\n", name, v, unit);
 }
 
+static const cli_usage USAGE = {
+    "report", "usage: stf report OUT.h5 [--json]\n",
+    "The metrics of a finished or interrupted run, computed from its file: the end time, the\n"
+    "surface height, each body's and the fluid's metrics (the keys of a scene's expect block),\n"
+    "with their units; \"never\" for an event that did not happen.\n"
+    "options:\n"
+    "  --json   the metrics as one JSON object instead (null: never happened), the JSON that\n"
+    "           stf run writes into the file's /metrics\n"
+    "exit codes: 0 printed, 2 bad input (bad option, unreadable or not a run's file)\n"};
+
 int cli_report(int argc, char **argv)
 {
+    if (cli_help_asked(argc, argv)) return cli_help(&USAGE);
     const char *path = NULL;
     int json = 0;
     for (int i = 0; i < argc; i++) {
         if (!strcmp(argv[i], "--json")) json = 1;
-        else if (argv[i][0] == '-' || path) {
-            fprintf(stderr, "stf report: unexpected argument '%s' (usage: stf report OUT.h5 [--json])\n", argv[i]);
-            return 2;
-        } else path = argv[i];
+        else if (argv[i][0] == '-') return cli_usage_error(&USAGE, "unknown option '%s'", argv[i]);
+        else if (path) return cli_usage_error(&USAGE, "unexpected argument '%s'", argv[i]);
+        else path = argv[i];
     }
-    if (!path) {
-        fprintf(stderr, "stf report: no output file given (usage: stf report OUT.h5 [--json])\n");
-        return 2;
-    }
+    if (!path) return cli_usage_error(&USAGE, "no output file given");
     stf_metrics m;
     char err[1024];
     if (stf_metrics_compute(path, &m, err, sizeof err) != 0) {

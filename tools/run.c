@@ -19,6 +19,7 @@ typedef struct run_args {
     stf_override ov[256];
     int nov;
     double duration; /* s, 0: the scene's */
+    const char *duration_arg; /* --duration's text */
     int threads, quiet;
     int resume;        /* --resume: continue OUT.h5 from its checkpoint */
     double checkpoint; /* wall-clock s between checkpoints; < 0: none */
@@ -46,13 +47,51 @@ static int stop_now(void *arg)
     return now - interrupt_seen > INTERRUPT_GRACE;
 }
 
-static int bad_flag(const char *msg, const char *arg)
-{
-    fprintf(stderr, "stf: %s '%s'\n", msg, arg);
-    return 2;
-}
+#define RUN_SYNOPSIS(cmd)                                                                     \
+    "usage: stf " cmd " SCENE [-o OUT.h5] [--set KEY=VALUE]... [--unset KEY]... [--duration S]\n" \
+    "               [--threads N] [--quiet] [--checkpoint S|off | --checkpoint-frames N]\n"       \
+    "       stf " cmd " --resume OUT.h5 | stf " cmd " SCENE [-o OUT.h5] [--set ...] --resume\n"
 
-static int parse_args(int argc, char **argv, run_args *a)
+#define RUN_OPTIONS                                                                           \
+    "options:\n"                                                                               \
+    "  -o, --out OUT.h5       the output (default NAME.h5 in the current directory, NAME the\n"  \
+    "                         scene's name), with OUT.xmf for ParaView; an existing file that\n" \
+    "                         is not HDF5, or the scene itself, is not overwritten\n"           \
+    "  --set KEY=VALUE        sets a scene key, a dotted path (effects.history.q,\n"            \
+    "                         bodies.0.mass) to a YAML value; in order, at most 256 with --unset\n" \
+    "  --unset KEY            removes a scene key\n"                                            \
+    "  --duration S           simulated seconds (default: the scene's duration); round(S / dt)\n" \
+    "                         steps, 1 to 1e9\n"                                                 \
+    "  --threads N            OpenMP threads, 1 to 1024 (default: OpenMP's, OMP_NUM_THREADS)\n"  \
+    "  -q, --quiet            no progress line and no summary on stderr\n"                      \
+    "  --checkpoint S|off     wall-clock seconds between checkpoints (default 60; 0: at every\n" \
+    "                         frame; off: none); one is also taken on SIGINT/SIGTERM, and the\n" \
+    "                         last one is removed when the run ends\n"                           \
+    "  --checkpoint-frames N  a checkpoint at every N-th frame of the file instead (N >= 1)\n"    \
+    "  --resume               continue a stopped run from its checkpoint, bit-identical: OUT.h5\n" \
+    "                         alone (the scene stored in it), or SCENE with the --set/--unset\n" \
+    "                         it was started with; the duration is the one it was started with\n"
+
+const cli_usage cli_run_usage = {
+    "run", RUN_SYNOPSIS("run"),
+    "Simulates SCENE (YAML, scenes/README.md) into OUT.h5: frames of the fluid at the scene's\n"
+    "frame_rate, the bodies at 500 Hz (or every step), root attributes and the metrics.\n"
+    RUN_OPTIONS
+    "exit codes: 0 done, 2 bad input (nothing written) or a write error, 3 numerical failure\n"
+    "(the file holds the run up to its last good frame), 130 interrupted by SIGINT/SIGTERM\n"
+    "(stf run --resume continues it)\n"};
+
+const cli_usage cli_check_usage = {
+    "check", RUN_SYNOPSIS("check"),
+    "As stf run, then holds the scene's expect block against the run's metrics (those of\n"
+    "stf report): one line an expectation on stdout, pass or FAIL, and a count.\n"
+    RUN_OPTIONS
+    "exit codes: 0 every expectation held, 1 one failed, 2 bad input (nothing written) or a\n"
+    "write error, 3 numerical failure, 130 interrupted by SIGINT/SIGTERM\n"};
+
+static const cli_usage *usage_of(int check) { return check ? &cli_check_usage : &cli_run_usage; }
+
+static int parse_args(int argc, char **argv, run_args *a, const cli_usage *u)
 {
     memset(a, 0, sizeof *a);
     a->checkpoint = DEFAULT_CHECKPOINT_SECONDS;
@@ -62,59 +101,57 @@ static int parse_args(int argc, char **argv, run_args *a)
         if ((!strcmp(s, "-o") || !strcmp(s, "--out")) && more) a->out = argv[++i];
         else if (!strcmp(s, "--set") && more) {
             char *eq = strchr(argv[++i], '=');
-            if (!eq) return bad_flag("--set needs KEY=VALUE, got", argv[i]);
-            if (a->nov == 256) return bad_flag("too many overrides at", argv[i]);
+            if (!eq) return cli_usage_error(u, "--set needs KEY=VALUE, got '%s'", argv[i]);
+            if (a->nov == 256) return cli_usage_error(u, "too many overrides at '%s'", argv[i]);
             *eq = 0;
             a->ov[a->nov].key = argv[i];
             a->ov[a->nov++].value = eq + 1;
         } else if (!strcmp(s, "--unset") && more) {
-            if (a->nov == 256) return bad_flag("too many overrides at", argv[i + 1]);
+            if (a->nov == 256) return cli_usage_error(u, "too many overrides at '%s'", argv[i + 1]);
             a->ov[a->nov].key = argv[++i];
             a->ov[a->nov++].value = NULL;
         } else if (!strcmp(s, "--duration") && more) {
             char *end;
-            a->duration = strtod(argv[++i], &end);
+            a->duration = strtod(a->duration_arg = argv[++i], &end);
             if (*end || !(a->duration > 0) || !isfinite(a->duration))
-                return bad_flag("--duration must be a number of seconds > 0, got", argv[i]);
+                return cli_usage_error(u, "--duration must be a number of seconds > 0, got '%s'",
+                                       argv[i]);
         } else if (!strcmp(s, "--threads") && more) {
             char *end;
             long t = strtol(argv[++i], &end, 10);
             if (*end || t < 1 || t > 1024)
-                return bad_flag("--threads must be an integer in [1,1024], got", argv[i]);
+                return cli_usage_error(u, "--threads must be an integer in [1,1024], got '%s'",
+                                       argv[i]);
             a->threads = (int)t;
         } else if (!strcmp(s, "--checkpoint") && more) {
             char *end;
             a->checkpoint = strtod(argv[++i], &end);
             if (!strcmp(argv[i], "off")) a->checkpoint = -1;
             else if (*end || !(a->checkpoint >= 0) || !isfinite(a->checkpoint))
-                return bad_flag("--checkpoint must be wall-clock seconds >= 0 or 'off', got", argv[i]);
+                return cli_usage_error(u, "--checkpoint must be wall-clock seconds >= 0 or 'off', "
+                                       "got '%s'", argv[i]);
             a->checkpoint_given = 1;
         } else if (!strcmp(s, "--checkpoint-frames") && more) {
             char *end;
             a->checkpoint_frames = strtol(argv[++i], &end, 10);
             if (*end || a->checkpoint_frames < 1 || a->checkpoint_frames > 0x7fffffff)
-                return bad_flag("--checkpoint-frames must be a number of frames >= 1, got", argv[i]);
+                return cli_usage_error(u, "--checkpoint-frames must be a number of frames >= 1, "
+                                       "got '%s'", argv[i]);
         } else if (!strcmp(s, "--resume")) a->resume = 1;
         else if (!strcmp(s, "--quiet") || !strcmp(s, "-q")) a->quiet = 1;
-        else if (s[0] == '-') return bad_flag("unknown or incomplete option", s);
+        else if (s[0] == '-') return cli_usage_error(u, "unknown or incomplete option '%s'", s);
         else if (!a->scene) a->scene = s;
-        else return bad_flag("unexpected argument", s);
+        else return cli_usage_error(u, "unexpected argument '%s'", s);
     }
-    if (!a->scene) {
-        fprintf(stderr, a->resume ? "stf: --resume needs OUT.h5, or SCENE [-o OUT.h5]\n"
-                                  : "stf: no scene file given\n");
-        return 2;
-    }
-    if (a->checkpoint_frames > 0 && a->checkpoint_given) {
-        fprintf(stderr, "stf: --checkpoint-frames cannot be combined with --checkpoint (one "
-                        "trigger: every N frames, or every S seconds of wall-clock time)\n");
-        return 2;
-    }
-    if (a->resume && a->duration > 0) {
-        fprintf(stderr, "stf: --duration cannot be combined with --resume (a resumed run keeps "
-                        "the duration it was started with)\n");
-        return 2;
-    }
+    if (!a->scene)
+        return cli_usage_error(u, a->resume ? "--resume needs OUT.h5, or SCENE [-o OUT.h5]"
+                                            : "no scene file given");
+    if (a->checkpoint_frames > 0 && a->checkpoint_given)
+        return cli_usage_error(u, "--checkpoint-frames cannot be combined with --checkpoint (one "
+                                  "trigger: every N frames, or every S seconds of wall-clock time)");
+    if (a->resume && a->duration > 0)
+        return cli_usage_error(u, "--duration cannot be combined with --resume (a resumed run "
+                                  "keeps the duration it was started with)");
     return 0;
 }
 
@@ -420,7 +457,10 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
     long steps = (long)p.steps, first = sim->steps + 1;
     long per_frame = lround(1.0 / (sc->frame_rate * sc->dt));
     if (per_frame < 1) per_frame = 1;
-    long body_every = lround(0.002 / sc->dt); /* bodies at 500 Hz or every step */
+    /* bodies at 500 Hz or every step (a dt so small that 2 ms is more steps than the run
+       has: none but the first) */
+    double body_steps = 0.002 / sc->dt;
+    long body_every = body_steps < steps + 1 ? lround(body_steps) : steps + 1;
     if (body_every < 1) body_every = 1;
     if (resume && !a->quiet)
         fprintf(stderr, "stf: resuming %s at t = %.4f s (step %ld of %ld)\n", out, sim->time,
@@ -545,6 +585,22 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
     return status;
 }
 
+/* Refuses a run whose step count round(duration / dt) is not one it can take (the scene's own
+ * duration passed the loader; this is --duration's, or a resumed file's). Returns 0 or 2 with
+ * a message naming where the duration came from. */
+static int check_steps(const run_args *a, const stf_scene *sc, const char *resumed, int check)
+{
+    char why[512];
+    double duration = a->duration > 0 ? a->duration : sc->duration;
+    if (stf_run_steps(duration, sc->dt, why, sizeof why) >= 0) return 0;
+    if (resumed)
+        fprintf(stderr, "stf %s: %s: its stored duration: %s\n", usage_of(check)->cmd, resumed, why);
+    else if (a->duration > 0)
+        fprintf(stderr, "stf %s: --duration %s: %s\n", usage_of(check)->cmd, a->duration_arg, why);
+    else fprintf(stderr, "stf %s: %s: duration: %s\n", usage_of(check)->cmd, sc->path, why);
+    return 2;
+}
+
 /* --resume: finds the output and the scene (the scene given, which must be the one the file
  * was written by, or the scene text stored in the file) and reads the checkpoint. Returns
  * -1 to go on, or the exit code (0 for a run that already finished) with a message. The file
@@ -611,8 +667,9 @@ static int prepare_resume(run_args *a, stf_scene **sc, char **own, const char **
 
 int cli_run(int argc, char **argv, int check)
 {
+    if (cli_help_asked(argc, argv)) return cli_help(usage_of(check));
     run_args a;
-    if (parse_args(argc, argv, &a) != 0) return 2;
+    if (parse_args(argc, argv, &a, usage_of(check)) != 0) return 2;
     if (a.threads) stf_set_threads(a.threads);
     char err[2048];
     stf_scene *sc = NULL;
@@ -623,7 +680,8 @@ int cli_run(int argc, char **argv, int check)
     int status;
     if (a.resume) {
         status = prepare_resume(&a, &sc, &own, &out, &st);
-        if (status < 0) status = simulate(&a, sc, out, &m, &st);
+        if (status < 0 && (status = check_steps(&a, sc, out, check)) == 0)
+            status = simulate(&a, sc, out, &m, &st);
         else if (check && sc && (status == 0 || status == 3) && /* ended before: its metrics */
                  stf_metrics_compute(out, &m, err, sizeof err) != 0) {
             fprintf(stderr, "stf: %s\n", err);
@@ -636,7 +694,8 @@ int cli_run(int argc, char **argv, int check)
         }
         own = a.out ? NULL : default_out(sc);
         out = a.out ? a.out : own;
-        status = check_output(out, a.scene);
+        status = check_steps(&a, sc, NULL, check);
+        if (status == 0) status = check_output(out, a.scene);
         if (status == 0) status = simulate(&a, sc, out, &m, NULL);
     }
     stf_state_free(&st);

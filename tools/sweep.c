@@ -43,12 +43,47 @@ extern char **environ;
 
 #define MAX_KEYS SWEEP_MAX_KEYS
 #define MAX_FIXED 64
+#define MAX_RUNS 100000 /* runs of a sweep, repeats included */
 
-static const char *USAGE =
+static const cli_usage USAGE = {
+    "sweep",
     "usage: stf sweep SCENE (--vary KEY=V1,V2,...|--vary KEY=START:STOP:COUNT)... | --list FILE\n"
     "                 -o DIR [--repeat N] [--jobs N] [--threads N] [--duration S]\n"
     "                 [--set KEY=VALUE]... [--unset KEY]... [--plot METRIC] [--x KEY]\n"
-    "                 [--series KEY] [--png FILE.png] [--quiet]";
+    "                 [--series KEY] [--png FILE.png] [--quiet]\n",
+    "Runs SCENE many times, each a stf run with its own --set's into DIR/run_NNNN.h5 (log:\n"
+    "DIR/run_NNNN.log): every combination of the --vary values (the last key fastest) or each\n"
+    "line of a --list file, --repeat times. Then DIR/summary.csv, one row a run (its values,\n"
+    "exit status, expectations, wall seconds, every metric), and a plot, DIR/summary.png.\n"
+    "Started again on the same DIR (DIR/plan.txt: the same sweep), it skips the runs that\n"
+    "ended and continues the stopped ones from their checkpoints. Under mpirun (an stf built\n"
+    "with MPI) the runs are spread over the ranks.\n"
+    "options:\n"
+    "  --vary KEY=V1,V2,...         a scene key (as for --set) and its values, YAML (commas\n"
+    "                               inside [...] belong to the value); up to 16 keys\n"
+    "  --vary KEY=START:STOP:COUNT  COUNT values (1 to 100000) evenly spaced, both ends in\n"
+    "  --list FILE                  one run a line, KEY=VALUE words; '#' starts a comment\n"
+    "  -o, --out DIR                the runs and the summary: a new or empty directory, or the\n"
+    "                               same sweep's (required)\n"
+    "  --repeat N                   runs of each combination or line, 1 to 1000 (default 1);\n"
+    "                               at most 100000 runs in all\n"
+    "  --jobs N                     runs at a time, 1 to 1024 (default: the cores)\n"
+    "  --threads N                  OpenMP threads of each run, 1 to 1024 (default: the cores\n"
+    "                               / the jobs)\n"
+    "  --duration S                 simulated seconds of each run (default: the scene's);\n"
+    "                               round(S / dt) steps, 1 to 1e9\n"
+    "  --set KEY=VALUE, --unset KEY for every run, before its varied keys (at most 64)\n"
+    "  --plot METRIC                the plotted column of summary.csv, a metric key such as\n"
+    "                               ball.sink_time (default: the first body's float_duration;\n"
+    "                               without bodies fluid.max_speed)\n"
+    "  --x KEY                      the x axis, a varied key (default: the first)\n"
+    "  --series KEY                 one line per value of this varied key (default: the\n"
+    "                               second, if any)\n"
+    "  --png FILE.png               the plot (default DIR/summary.png)\n"
+    "  -q, --quiet                  no progress on stderr\n"
+    "exit codes: 0 every run done and its expectations held, 1 a run's expectations failed,\n"
+    "2 bad input (no run started) or a run that did not end (its log says why), 130\n"
+    "interrupted (run the same sweep again to continue it)\n"};
 
 typedef struct sweep_args {
     const char *scene, *dir, *list, *plot_metric, *plot_x, *plot_series, *png;
@@ -65,8 +100,7 @@ static void on_signal(int sig) { stop_sweep = sig; }
 
 static int bad(const char *msg, const char *arg)
 {
-    fprintf(stderr, "stf sweep: %s '%s'\n%s\n", msg, arg, USAGE);
-    return 2;
+    return cli_usage_error(&USAGE, "%s '%s'", msg, arg);
 }
 
 static int parse_int(const char *s, int lo, int hi, int *out)
@@ -112,16 +146,14 @@ static int parse_args(int argc, char **argv, sweep_args *a)
         else if (!strcmp(s, "--png") && more) a->png = argv[++i];
         else if (!strcmp(s, "--series") && more) a->plot_series = argv[++i];
         else if (!strcmp(s, "--quiet") || !strcmp(s, "-q")) a->quiet = 1;
-        else if (!strcmp(s, "-h") || !strcmp(s, "--help")) {
-            puts(USAGE);
-            return 1;
-        } else if (s[0] == '-') return bad("unknown or incomplete option", s);
+        else if (s[0] == '-') return bad("unknown or incomplete option", s);
         else if (!a->scene) a->scene = s;
         else return bad("unexpected argument", s);
     }
-    if (!a->scene) return bad("no scene file given", "");
-    if (!a->dir) return bad("no output directory given (-o DIR)", "");
-    if (!a->nvary && !a->list) return bad("nothing to vary: give --vary KEY=... or --list FILE", "");
+    if (!a->scene) return cli_usage_error(&USAGE, "no scene file given");
+    if (!a->dir) return cli_usage_error(&USAGE, "no output directory given (-o DIR)");
+    if (!a->nvary && !a->list)
+        return cli_usage_error(&USAGE, "nothing to vary: give --vary KEY=... or --list FILE");
     if (a->nvary && a->list) return bad("--vary and --list exclude each other; got --list", a->list);
     return 0;
 }
@@ -153,10 +185,16 @@ static int parse_vary(const char *spec, sweep_key *k)
     k->key = dup_n(spec, (size_t)(eq - spec));
     const char *v = eq + 1;
     double a, b;
-    int n, used = 0;
-    if (v[0] != '[' && sscanf(v, "%lf:%lf:%d%n", &a, &b, &n, &used) == 3 && !v[used]) {
-        if (n < 1 || n > 100000 || !isfinite(a) || !isfinite(b))
-            return bad("--vary START:STOP:COUNT needs finite ends and COUNT >= 1, got", spec);
+    int used = 0;
+    char *end = NULL;
+    long n = 0;
+    /* START:STOP:COUNT when COUNT is an integer (strtol: a COUNT too large for sscanf's %d
+       was undefined, and could pass as a small one) */
+    if (v[0] != '[' && sscanf(v, "%lf:%lf:%n", &a, &b, &used) == 2 && used > 0 &&
+        v[used] >= '0' && v[used] <= '9' && (errno = 0, n = strtol(v + used, &end, 10), !*end)) {
+        if (errno == ERANGE || n < 1 || n > 100000 || !isfinite(a) || !isfinite(b))
+            return bad("--vary START:STOP:COUNT needs finite ends and COUNT in [1,100000], got",
+                       spec);
         for (int i = 0; i < n; i++) {
             char buf[32];
             /* the ends exactly; %.10g so that 0:1:11 gives 0.1, not 0.10000000000000001 */
@@ -243,6 +281,13 @@ static int read_list(const char *path, sweep_plan *p, int repeat)
             any = 1;
         }
         if (!any) continue;
+        if ((long)p->nruns + repeat > MAX_RUNS) {
+            fprintf(stderr, "%s:%d: more than %d runs (the lines times --repeat)\n", path, ln,
+                    MAX_RUNS);
+            for (int k = 0; k < MAX_KEYS; k++) free(vals[k]);
+            fclose(f);
+            return 2;
+        }
         for (int r = 0; r < repeat; r++) {
             add_run(p, vals, combo, r);
             p->runs[p->nruns - 1].line = ln;
@@ -269,7 +314,9 @@ static int build_plan(const sweep_args *a, sweep_plan *p)
         for (int j = 0; j < i; j++)
             if (!strcmp(p->keys[j].key, p->keys[i].key)) return bad("a key is varied twice:", p->keys[i].key);
         total *= p->keys[i].nval;
-        if (total > 100000) return bad("more than 100000 runs at", a->vary[i]);
+        if (total * a->repeat > MAX_RUNS)
+            return bad("more than 100000 runs (the values' combinations times --repeat) at",
+                       a->vary[i]);
     }
     for (long c = 0; c < total; c++) {
         char *vals[MAX_KEYS] = {0};
@@ -741,9 +788,9 @@ static int under_mpi(void)
 
 int cli_sweep(int argc, char **argv)
 {
+    if (cli_help_asked(argc, argv)) return cli_help(&USAGE);
     sweep_args a;
-    int prc = parse_args(argc, argv, &a);
-    if (prc) return prc == 1 ? 0 : 2;
+    if (parse_args(argc, argv, &a)) return 2;
     sweep_plan p;
     int rc = build_plan(&a, &p);
     if (rc) {
@@ -752,12 +799,20 @@ int cli_sweep(int argc, char **argv)
     }
     stf_metrics names = {0}; /* the first run's body names, for sweep_plot_check */
     for (int i = 0; i < p.nruns && rc == 0; i++) { /* every run's scene loads: bad input first */
-        stf_scene *sc;
+        stf_scene *sc = NULL;
         if (p.runs[i].repeat > 0) continue;
         rc = check_run(&a, &p, i, &sc);
         for (int k = 0; rc == 0 && i == 0 && k < sc->nbodies && k < STF_METRICS_MAX_BODIES; k++)
             snprintf(names.bodies[names.nbodies++].name, sizeof names.bodies[0].name, "%s", sc->bodies[k].name);
-        if (rc == 0) stf_scene_free(sc);
+        char why[512]; /* --duration at this run's dt (the scene's own duration passed its load) */
+        if (rc == 0 && a.duration &&
+            stf_run_steps(strtod(a.duration, NULL), sc->dt, why, sizeof why) < 0) {
+            fprintf(stderr, "stf sweep: --duration %s (run %d", a.duration, i);
+            if (p.runs[i].line) fprintf(stderr, ", %s:%d", a.list, p.runs[i].line);
+            fprintf(stderr, "): %s\n", why);
+            rc = 2;
+        }
+        if (sc) stf_scene_free(sc);
     }
     char perr[512];
     if (rc == 0 && sweep_plot_check(&p, &names, a.plot_metric, a.plot_x, a.plot_series, perr, sizeof perr) != 0) {
