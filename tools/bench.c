@@ -160,7 +160,7 @@ static const cli_usage bench_usages[] = {
      "  --steps N      N, 1 to 1000000 (default 32, --full 224)\n"
      "  --full         N = 224\n" BENCH_THREADS BENCH_OV BENCH_EXIT("")},
     {"bench dam", "usage: stf bench dam SCENE [--duration S] [--threads N] [--set KEY=VALUE]... [--unset KEY]...\n",
-     "Carreau-Yasuda solver speed (issue 8) on SCENE (fluid.model: carreau_yasuda) from rest,\n"
+     "Carreau-Yasuda solver speed on SCENE (fluid.model: carreau_yasuda) from rest,\n"
      "in this process: wall and cpu seconds per simulated second, substeps per simulated\n"
      "second, ms per substep, pressure iterations, density error, dt range, CFL number, peak\n"
      "memory and neighbour rebuilds; one row at 1 thread and one at 2.\n"
