@@ -5,6 +5,7 @@
 #define STF_SIM_H
 
 #include "state.h"
+#include "stf_io.h"
 #include "stf_ode.h"
 
 typedef struct stf_sim {

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The paper's bowling sequence (Fig. 1, 13) in the strict metrics of src/metrics.h, at a
+# The paper's bowling sequence (Fig. 1, 13) in the strict metrics of src/io/metrics.h, at a
 # reduced resolution: scenes/bowling_ball.yaml at 2.5 cm spacing (5.4K particles; the
 # material scales itself to the spacing, fluid.reference_spacing), over STF_BOWLING_SECONDS
 # (default 4 s: impact, bounce, roll and rest).

@@ -5,7 +5,7 @@
 #    scene's memory is in seconds); the
 #    default directory convergence-fluid_drop holds run0..run3.h5 and convergence.csv, whose
 #    columns are the four runs (dt, dt/2, dt/4, 1.5x_spacing) and whose rows are every fluid
-#    metric of src/metrics.c's list (read from the source, not a copy), each with a verdict,
+#    metric of src/io/metrics.c's list (read from the source, not a copy), each with a verdict,
 #    and the runs' dt, spacing, wall, cpu, steps, substeps and particles;
 #  - the runs' settings: the user's --set fluid.spacing is the base (1.5 and 2.25 cm), the
 #    dt/2 and dt/4 runs took 2x and 4x the steps of the dt run (the files' "steps" attribute
@@ -38,7 +38,7 @@ attr() { h5dump -a "/$2" "$1" | awk '/\(0\):/ { print $2 }'; }
 s0=$(attr $D/run0.h5 steps) s1=$(attr $D/run1.h5 steps) s2=$(attr $D/run2.h5 steps)
 [ -n "$s0" ] && [ "$s1" -eq $((2 * s0)) ] && [ "$s2" -eq $((4 * s0)) ] \
     || fail "steps of the dt, dt/2, dt/4 runs: $s0 $s1 $s2 (want N, 2N, 4N)"
-/usr/bin/python3 - "$D/convergence.csv" "$PROJ/src/metrics.c" "$rc" "$s0" drop.out <<'PY' || fail "convergence.csv (fluid drop) wrong"
+/usr/bin/python3 - "$D/convergence.csv" "$PROJ/src/io/metrics.c" "$rc" "$s0" drop.out <<'PY' || fail "convergence.csv (fluid drop) wrong"
 import csv, re, sys
 path, src, rc, s0, out = sys.argv[1], open(sys.argv[2]).read(), int(sys.argv[3]), int(sys.argv[4]), sys.argv[5]
 names = lambda which: re.findall(r'"(\w+)"', re.search(which + r"\[\] = \{(.*?)\};", src, re.S).group(1))
@@ -75,7 +75,7 @@ PY
     --threads 1 --jobs 2 -o bowl >bowl.out 2>bowl.err
 rc=$?
 [ $rc -eq 0 ] || [ $rc -eq 1 ] || { fail "bench convergence (bowling) exited $rc"; cat bowl.err >&2; }
-/usr/bin/python3 - bowl/convergence.csv "$PROJ/src/metrics.c" "$rc" <<'PY' || fail "convergence.csv (bowling) wrong"
+/usr/bin/python3 - bowl/convergence.csv "$PROJ/src/io/metrics.c" "$rc" <<'PY' || fail "convergence.csv (bowling) wrong"
 import csv, re, sys
 path, src, rc = sys.argv[1], open(sys.argv[2]).read(), int(sys.argv[3])
 names = lambda which: re.findall(r'"(\w+)"', re.search(which + r"\[\] = \{(.*?)\};", src, re.S).group(1))

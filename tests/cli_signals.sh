@@ -3,7 +3,7 @@
 # current frame, closes the file (statistics, metrics, XDMF sidecar) and exits 130. SIGKILL
 # (kill -9) cannot be caught: the file must still be readable by h5py, h5dump and
 # `stf report` up to the last complete frame, because every frame is flushed when complete
-# and HDF5 writes no metadata in between (src/h5io.c). The kills land at several moments.
+# and HDF5 writes no metadata in between (src/io/h5io.c). The kills land at several moments.
 # Residual risk (HDF5 1.10 without SWMR cannot order its metadata writes): a kill inside the
 # millisecond of the flush that links a frame could still tear the root group. Measured with
 # a frame every step (tests/kill_stress.sh): 0 of 200 kills unloaded, 0 of 180 at load 5-8

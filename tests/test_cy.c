@@ -8,7 +8,7 @@
 
 #include "stf_ode.h"
 #include "test_util.h"
-#include "stf.h"
+#include "stf_io.h"
 
 
 static void test_viscosity_law(void)

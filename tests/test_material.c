@@ -1,4 +1,4 @@
-/* test_material.c - a scene's `material:` (src/scene.c, merge_material), on real files in a
+/* test_material.c - a scene's `material:` (src/io/scene.c, merge_material), on real files in a
  * temporary directory:
  *  - the material's fluid keys and the parameters of the effects the scene names fill the
  *    scene; the scene's own keys win; an effect the scene does not name stays off;
@@ -12,7 +12,7 @@
  *    1/s, sigma as s^-2).
  */
 #define _POSIX_C_SOURCE 200809L
-#include "stf.h"
+#include "stf_io.h"
 #include "test_util.h"
 
 #include <stdio.h>

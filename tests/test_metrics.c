@@ -1,4 +1,4 @@
-/* test_metrics.c - the fluid metrics of src/metrics.h on output files whose answer is known
+/* test_metrics.c - the fluid metrics of src/io/metrics.h on output files whose answer is known
  * by construction (written with the real HDF5 writer, read back by stf_metrics_compute):
  * finger_height is the 95th percentile of the column heights of the fluid body over their
  * median (drops flying free of the body do not count), impact_time is the first drop in centre-of-mass speed,

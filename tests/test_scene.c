@@ -2,7 +2,7 @@
  * input is reported with FILE:LINE:COL and the dotted key, --set/--unset overrides work, and
  * the effective text round-trips. */
 #define _POSIX_C_SOURCE 200809L
-#include "stf.h"
+#include "stf_io.h"
 #include "test_util.h"
 
 #include <dirent.h>

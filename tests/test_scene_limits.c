@@ -2,7 +2,7 @@
  * work a file can ask for and refuses each with exit code 2 and FILE:LINE:COL, quickly.
  * (An alarm turns a hang into a failure instead of a stuck test.) */
 #define _POSIX_C_SOURCE 200809L
-#include "stf.h"
+#include "stf_io.h"
 #include "test_util.h"
 
 #include <signal.h>

@@ -2,7 +2,7 @@
 #ifndef STF_CLI_H
 #define STF_CLI_H
 
-#include "stf.h"
+#include "stf_io.h"
 
 int cli_run(int argc, char **argv, int check);
 int cli_report(int argc, char **argv);

@@ -1,4 +1,4 @@
-// embed_cxx.cpp - the public headers (src/stf.h, ode_glue/stf_ode.h) from C++: both compile
+// embed_cxx.cpp - the public headers (src/stf.h, ode_glue/stf_ode.h, src/io/stf_io.h) from C++: all compile
 // in one C++ translation unit and link to the C libraries (extern "C"). Run by ctest: it
 // builds a fluid and a coupler, checks a bad def is refused by name and steps once.
 #include <cmath>
@@ -7,6 +7,7 @@
 
 #include "stf.h"
 #include "stf_ode.h"
+#include "stf_io.h"
 
 int main()
 {

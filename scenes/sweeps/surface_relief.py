@@ -2,7 +2,7 @@
 """surface_relief.py - the surface of a vibrated layer (scenes/README.md, "Vibration"), beyond
 fluid.finger_height: per frame of the second half of the run, the columns (2 spacings wide)
 of the fluid body (particles connected by neighbours closer than 1.5 spacings, as in
-src/metrics.h), then
+src/io/metrics.h), then
   finger / hole: 95th percentile minus median, median minus 5th percentile (all columns,
                  and without the ring of columns along the container walls)
   persistent:    each column's height above its frame's median, averaged over the frames;

@@ -3,7 +3,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "stf.h"
+#include "stf_io.h"
 
 int LLVMFuzzerTestOneInput(const unsigned char *data, size_t size)
 {

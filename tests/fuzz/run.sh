@@ -20,8 +20,8 @@ clang -fsanitize=fuzzer "$out/probe.c" -o "$out/probe" 2>/dev/null ||
   { echo "fuzz: clang has no libFuzzer runtime: skipped"; exit 77; }
 cp "$src"/scenes/*.yaml "$src"/tests/scenes/*.yaml "$out/corpus/"
 clang -g -O1 -std=c11 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined \
-  -I"$src/src" $(pkg-config --cflags libfyaml hdf5) \
-  "$src"/tests/fuzz/fuzz_scene.c "$src"/src/*.c \
+  -I"$src/src" -I"$src/src/io" $(pkg-config --cflags libfyaml hdf5) \
+  "$src"/tests/fuzz/fuzz_scene.c "$src"/src/*.c "$src"/src/io/*.c \
   $(pkg-config --libs libfyaml hdf5) -lhdf5_serial_hl -lccd -fopenmp -lm -o "$out/fuzz_scene"
 cd "$out"
 set +e

@@ -7,7 +7,7 @@
  */
 #define _POSIX_C_SOURCE 200809L
 #include "metrics.h"
-#include "stf.h"
+#include "stf_io.h"
 
 #include <errno.h>
 #include <libfyaml.h>
