@@ -13,7 +13,7 @@ static void ode_init_once(void)
     static int done;
     if (!done) {
         dInitODE2(0);
-        dAllocateODEDataForThread(dAllocateMaskAll);
+        dAllocateODEDataForThread((unsigned)dAllocateMaskAll);
         done = 1;
     }
 }
@@ -510,7 +510,7 @@ int stf_sim_step(stf_sim *s)
         }
     }
     s->steps++;
-    s->time = s->steps * sc->dt;
+    s->time = (double)s->steps * sc->dt;
     return 0;
 }
 

@@ -308,7 +308,8 @@ int stf_fluid_add_block(stf_fluid *f, const double lo[3], const double hi[3], co
     for (long c = 0; c < cnt[2]; c++)
         for (long b = 0; b < cnt[1]; b++)
             for (long a = 0; a < cnt[0]; a++) {
-                double x[3] = {lo[0] + (a + 0.5) * s, lo[1] + (b + 0.5) * s, lo[2] + (c + 0.5) * s};
+                double x[3] = {lo[0] + ((double)a + 0.5) * s, lo[1] + ((double)b + 0.5) * s,
+                                lo[2] + ((double)c + 0.5) * s};
                 lattice_jitter(f->def.jitter * s, (uint32_t)f->next_id, x);
                 if (stf_fluid_add_particle(f, x, v) < 0) return -1;
                 added++;
@@ -330,7 +331,7 @@ int stf_fluid_add_ball(stf_fluid *f, const double c[3], double r, const double v
         for (long b = -m; b <= m; b++)
             for (long a = -m; a <= m; a++) {
                 if ((double)(a * a + b * b + k * k) * s * s >= r * r) continue;
-                double x[3] = {c[0] + a * s, c[1] + b * s, c[2] + k * s};
+                double x[3] = {c[0] + (double)a * s, c[1] + (double)b * s, c[2] + (double)k * s};
                 lattice_jitter(f->def.jitter * s, (uint32_t)f->next_id, x);
                 if (stf_fluid_add_particle(f, x, v) < 0) return -1;
                 added++;

@@ -146,9 +146,10 @@ static void relax_springs_of(stf_fluid *f, stf_gs *g, int i, double dt, double k
     const double *D = f->hist.D, *xp = f->xprev;
     double h = f->h, dt2 = dt * dt, onset = f->def.k_onset, k_min = f->def.k_min;
     double gamma = f->def.spring_damping / dt; /* XPBD's damping, tau / dt */
-    const int32_t *p = s->partner + (size_t)i * s->stride;
-    const double *Ls = s->rest + (size_t)i * s->stride;
-    double *lam = g->lambda + (size_t)i * s->stride;
+    size_t row = (size_t)i * (size_t)s->stride;
+    const int32_t *p = s->partner + row;
+    const double *Ls = s->rest + row;
+    double *lam = g->lambda + row;
     for (int k = 0; k < s->count[i]; k++) {
         int j = p[k];
         if (j <= i) continue; /* the pair's other row */
@@ -187,7 +188,7 @@ int gs_springs(stf_fluid *f, double dt, double khist_scale)
     double longest = f->h;
 #pragma omp parallel for schedule(static) reduction(max : longest)
     for (int i = 0; i < n; i++) {
-        const int32_t *p = s->partner + (size_t)i * s->stride;
+        const int32_t *p = s->partner + (size_t)i * (size_t)s->stride;
         for (int k = 0; k < s->count[i]; k++) {
             int j = p[k];
             double rx = f->x[3 * j] - f->x[3 * i], ry = f->x[3 * j + 1] - f->x[3 * i + 1],

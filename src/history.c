@@ -186,7 +186,7 @@ int history_push(stf_history *h, const double *v, int n)
     for (int r = 0; r < h->rows; r++) { /* rows past n (none in use) keep zeros */
         int p = part[r];
         for (int k = 0; k < 3; k++)
-            slot[3 * (size_t)r + k] = p < n ? (float)v[3 * (size_t)p + k] : 0.0f;
+            slot[3 * (size_t)r + (size_t)k] = p < n ? (float)v[3 * (size_t)p + (size_t)k] : 0.0f;
     }
     return 0;
 }
@@ -469,7 +469,7 @@ static void store_rows(const stf_history *h, const double *acc, int lo, int cnt,
     for (int r = lo / 3; r < (lo + cnt) / 3; r++) {
         int p = h->part[r];
         if (p < n)
-            for (int k = 0; k < 3; k++) h->D[3 * (size_t)p + k] = acc[3 * r - lo + k];
+            for (int k = 0; k < 3; k++) h->D[3 * (size_t)p + (size_t)k] = acc[3 * r - lo + k];
     }
 }
 
@@ -571,7 +571,8 @@ void history_derivative(stf_history *h, int n)
                 T *row = a + (size_t)s * stride;                                              \
                 memcpy(tmp, row, (size_t)m * 3 * sizeof *tmp);                                \
                 for (int i = 0; i < n; i++)                                                   \
-                    for (int c = 0; c < 3; c++) row[3 * i + c] = tmp[3 * (size_t)perm[i] + c]; \
+                    for (int c = 0; c < 3; c++)                                               \
+                        row[3 * i + c] = tmp[3 * (size_t)perm[i] + (size_t)c];                \
                 memset(row + (size_t)n * 3, 0, (stride - (size_t)n * 3) * sizeof *row);       \
             }                                                                                 \
             free(tmp);                                                                        \

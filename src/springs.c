@@ -79,10 +79,9 @@ static int widen(stf_springs *s, int n, int stride)
         return -1;
     }
     for (int i = 0; i < n; i++) {
-        memcpy(p + (size_t)i * stride, s->partner + (size_t)i * s->stride,
-               (size_t)s->count[i] * sizeof *p);
-        memcpy(r + (size_t)i * stride, s->rest + (size_t)i * s->stride,
-               (size_t)s->count[i] * sizeof *r);
+        size_t to = (size_t)i * (size_t)stride, from = (size_t)i * (size_t)s->stride;
+        memcpy(p + to, s->partner + from, (size_t)s->count[i] * sizeof *p);
+        memcpy(r + to, s->rest + from, (size_t)s->count[i] * sizeof *r);
     }
     free(s->partner);
     free(s->rest);
@@ -270,8 +269,9 @@ static int adjust_one(stf_fluid *f, int i, int64_t stamp, int64_t *mark, double 
                       double khist_scale, spring_chunk *ch, spring_spill *sp)
 {
     stf_springs *s = &f->springs;
-    int32_t *np = s->partner + (size_t)i * s->stride;
-    double *nL = s->rest + (size_t)i * s->stride;
+    size_t row = (size_t)i * (size_t)s->stride;
+    int32_t *np = s->partner + row;
+    double *nL = s->rest + row;
     const int32_t *op = np;
     const double *oL = nL;
     int nold = s->count[i];
@@ -328,8 +328,9 @@ static void saturated_one(stf_fluid *f, int i, double dt, double khist_scale, co
     const stf_springs *s = &f->springs;
     const double *x = f->x;
     double d[3] = {0, 0, 0};
-    const int32_t *p = s->partner + (size_t)i * s->stride;
-    const double *Ls = s->rest + (size_t)i * s->stride;
+    size_t row = (size_t)i * (size_t)s->stride;
+    const int32_t *p = s->partner + row;
+    const double *Ls = s->rest + row;
     const double *D = f->hist.D;
     double h = f->h;
     for (int k = 0; k < s->count[i]; k++) {
@@ -435,12 +436,13 @@ int springs_permute(stf_springs *s, const int32_t *perm, const int32_t *inv, int
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) {
         int o = perm[i];
+        size_t from = (size_t)o * (size_t)s->stride, to = (size_t)i * (size_t)s->stride;
         int c = 0;
         for (int k = 0; k < s->count[o]; k++) {
-            int j = inv[s->partner[(size_t)o * s->stride + k]];
+            int j = inv[s->partner[from + (size_t)k]];
             if (j < 0) continue; /* the partner was removed */
-            s->partner2[(size_t)i * s->stride + c] = j;
-            s->rest2[(size_t)i * s->stride + c] = s->rest[(size_t)o * s->stride + k];
+            s->partner2[to + (size_t)c] = j;
+            s->rest2[to + (size_t)c] = s->rest[from + (size_t)k];
             c++;
         }
         s->count2[i] = c;

@@ -167,7 +167,8 @@ static void test_spring_search(void)
             searched += !sp->complete[i] || f->grid.gained[i];
             if (!sp->complete[i]) continue;
             complete++;
-            const int32_t *row = grid_row(&f->grid, i), *p = sp->partner + (size_t)i * sp->stride;
+            const int32_t *row = grid_row(&f->grid, i);
+            const int32_t *p = sp->partner + (size_t)i * (size_t)sp->stride;
             for (int k = 0; k < f->grid.count[i]; k++) {
                 int found = 0;
                 for (int m = 0; m < sp->count[i] && !found; m++) found = p[m] == row[k];
@@ -260,8 +261,8 @@ static void test_effects_off(void)
 {
     const unsigned all = STF_EFFECT_GRAVITY | STF_EFFECT_VISCOSITY | STF_EFFECT_PRESSURE |
                          STF_EFFECT_SPRINGS | STF_EFFECT_HISTORY | STF_EFFECT_BOUNDARY_STICK;
-    const unsigned nohist = all & ~STF_EFFECT_HISTORY;
-    const unsigned nosprings = all & ~(STF_EFFECT_HISTORY | STF_EFFECT_SPRINGS);
+    const unsigned nohist = all & ~(unsigned)STF_EFFECT_HISTORY;
+    const unsigned nosprings = all & ~(unsigned)(STF_EFFECT_HISTORY | STF_EFFECT_SPRINGS);
 
     stf_fluid *off = drop_scene(nosprings, 0);
     stf_fluid *on = drop_scene(all, 1e4);

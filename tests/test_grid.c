@@ -279,7 +279,7 @@ static int32_t *copy_rows(const stf_grid *g, int n, int cap, int *count)
     int32_t *rows = malloc((size_t)n * (size_t)cap * sizeof *rows);
     for (int i = 0; i < n; i++) {
         count[i] = g->count[i] < cap ? g->count[i] : cap;
-        memcpy(rows + (size_t)i * cap, grid_row(g, i), (size_t)count[i] * sizeof *rows);
+        memcpy(rows + (size_t)i * (size_t)cap, grid_row(g, i), (size_t)count[i] * sizeof *rows);
     }
     return rows;
 }
@@ -296,7 +296,7 @@ static int wrong_gained(const stf_grid *g, int n, const int32_t *old, const int 
         for (int k = 0; k < g->count[i] && !new_one; k++) {
             int found = 0;
             for (int m = 0; m < ocount[i] && !found; m++)
-                found = old[(size_t)i * cap + m] == row[k];
+                found = old[(size_t)i * (size_t)cap + (size_t)m] == row[k];
             new_one = !found;
         }
         int want = rebuilt || new_one;

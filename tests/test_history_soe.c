@@ -78,7 +78,7 @@ static void test_constant_velocity(void)
 static void test_irregular(void)
 {
     const int np = 4, steps = 6000;
-    double *v = malloc(3 * np * sizeof *v);
+    double *v = malloc(3 * (size_t)np * sizeof *v);
     for (int iq = 0; iq < 3; iq++) {
         double q = qs[iq];
         stf_history hs, hf;

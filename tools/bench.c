@@ -1454,7 +1454,7 @@ static int bench_convergence(const bench_args *a, const char *self)
     while (stf_body_metric_names[nbody]) nbody++;
     while (stf_fluid_metric_names[nfluid]) nfluid++;
     int nb = mref ? mref->nbodies : 0, nrows = 0;
-    conv_row *rows = malloc(((size_t)nb * nbody + nfluid) * sizeof *rows);
+    conv_row *rows = malloc(((size_t)nb * (size_t)nbody + (size_t)nfluid) * sizeof *rows);
     if (!rows) {
         fprintf(stderr, "stf bench convergence: out of memory\n");
         return 2;
@@ -1609,7 +1609,7 @@ static int dam_row(const bench_args *a, double duration, int threads)
         dt_max = st.dt_max > dt_max ? st.dt_max : dt_max;
         cfl = st.cfl_number > cfl ? st.cfl_number : cfl;
     }
-    double wall = omp_get_wtime() - t0, cpu = cpu_seconds() - c0, T = steps * sc->dt;
+    double wall = omp_get_wtime() - t0, cpu = cpu_seconds() - c0, T = (double)steps * sc->dt;
     if (rc != 0) {
         fprintf(stderr, "stf bench dam: numerical failure: %s\n", stf_fluid_failure(sim->fluid));
         rc = 3;
@@ -1617,10 +1617,10 @@ static int dam_row(const bench_args *a, double duration, int threads)
         struct rusage ru;
         getrusage(RUSAGE_SELF, &ru);
         printf("%7d %8d %10.2f %10.2f %9.1f %8.2f %8.2f %9.3f %9.3f %9.2e %9.2e %7.3f %8.1f %8.2f\n",
-               threads, stf_fluid_count(sim->fluid), wall / T, cpu / T, substeps / T,
+               threads, stf_fluid_count(sim->fluid), wall / T, cpu / T, (double)substeps / T,
                1e3 * wall / (double)substeps, (double)iters / (double)substeps,
                100 * err_sum / (double)substeps, 100 * err_max, dt_min, dt_max, cfl,
-               ru.ru_maxrss / 1024.0,
+               (double)ru.ru_maxrss / 1024.0,
                (double)(sim->fluid->grid.rebuilds - rebuilds0) / (double)substeps);
         fflush(stdout);
     }

@@ -8,6 +8,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* The index of pixel (x, y) of c, both inside it (x, y >= 0). */
+static size_t pixel(const canvas *c, int x, int y) { return (size_t)y * (size_t)c->w + (size_t)x; }
+
 canvas *canvas_new(int w, int h)
 {
     if (w < 1 || h < 1 || (size_t)w * (size_t)h > ((size_t)1 << 28)) return NULL;
@@ -15,8 +18,8 @@ canvas *canvas_new(int w, int h)
     if (!c) return NULL;
     c->w = w;
     c->h = h;
-    c->rgb = calloc((size_t)w * h * 3, sizeof *c->rgb);
-    c->depth = malloc((size_t)w * h * sizeof *c->depth);
+    c->rgb = calloc((size_t)w * (size_t)h * 3, sizeof *c->rgb);
+    c->depth = malloc((size_t)w * (size_t)h * sizeof *c->depth);
     if (!c->rgb || !c->depth) {
         canvas_free(c);
         return NULL;
@@ -35,7 +38,7 @@ void canvas_free(canvas *c)
 
 void canvas_fill(canvas *c, const float rgb[3])
 {
-    size_t n = (size_t)c->w * c->h;
+    size_t n = (size_t)c->w * (size_t)c->h;
     for (size_t i = 0; i < n; i++) memcpy(c->rgb + 3 * i, rgb, 3 * sizeof(float));
 }
 
@@ -45,13 +48,13 @@ void canvas_fill_gradient(canvas *c, const float top[3], const float bottom[3])
         float t = c->h > 1 ? (float)y / (float)(c->h - 1) : 0.f;
         float col[3];
         for (int k = 0; k < 3; k++) col[k] = top[k] + (bottom[k] - top[k]) * t;
-        for (int x = 0; x < c->w; x++) memcpy(c->rgb + 3 * ((size_t)y * c->w + x), col, sizeof col);
+        for (int x = 0; x < c->w; x++) memcpy(c->rgb + 3 * pixel(c, x, y), col, sizeof col);
     }
 }
 
 void canvas_clear_depth(canvas *c)
 {
-    size_t n = (size_t)c->w * c->h;
+    size_t n = (size_t)c->w * (size_t)c->h;
     for (size_t i = 0; i < n; i++) c->depth[i] = INFINITY;
 }
 
@@ -59,7 +62,7 @@ void canvas_blend(canvas *c, int x, int y, const float rgb[3], float a)
 {
     if (x < 0 || y < 0 || x >= c->w || y >= c->h || !(a > 0)) return;
     if (a > 1) a = 1;
-    float *p = c->rgb + 3 * ((size_t)y * c->w + x);
+    float *p = c->rgb + 3 * pixel(c, x, y);
     for (int k = 0; k < 3; k++) p[k] += (rgb[k] - p[k]) * a;
 }
 
@@ -88,7 +91,7 @@ static void segment(canvas *c, double x0, double y0, double z0, double x1, doubl
             if (a <= 0) continue;
             if (depth_test) {
                 double z = z0 + (z1 - z0) * t;
-                if (z > c->depth[(size_t)y * c->w + x] + bias) continue;
+                if (z > c->depth[pixel(c, x, y)] + bias) continue;
             }
             canvas_blend(c, x, y, rgb, (float)(a > 1 ? 1 : a));
         }
@@ -139,7 +142,7 @@ void canvas_rect(canvas *c, int x0, int y0, int x1, int y1, const float rgb[3])
     y0 = clampi(y0, 0, c->h);
     y1 = clampi(y1, 0, c->h);
     for (int y = y0; y < y1; y++)
-        for (int x = x0; x < x1; x++) memcpy(c->rgb + 3 * ((size_t)y * c->w + x), rgb, 3 * sizeof(float));
+        for (int x = x0; x < x1; x++) memcpy(c->rgb + 3 * pixel(c, x, y), rgb, 3 * sizeof(float));
 }
 
 /* The fixed light, in screen terms (x right, y up, z towards the viewer). */
@@ -167,7 +170,7 @@ void canvas_sphere(canvas *c, double cx, double cy, double r, double z, double r
             if (q > 1) q = 1;
             double nz = sqrt(1 - q);
             double d = z - rz * nz;
-            size_t i = (size_t)y * c->w + x;
+            size_t i = pixel(c, x, y);
             if (d >= c->depth[i]) continue;
             double ndl = nx * lx + ny * ly + nz * lz;
             if (ndl < 0) ndl = 0;
@@ -203,7 +206,7 @@ void canvas_triangle(canvas *c, const double p0[3], const double p1[3], const do
             double w2 = 1 - w0 - w1;
             if (w0 < 0 || w1 < 0 || w2 < 0) continue;
             double z = w0 * p0[2] + w1 * p1[2] + w2 * p2[2];
-            size_t i = (size_t)y * c->w + x;
+            size_t i = pixel(c, x, y);
             if (z >= c->depth[i]) continue;
             c->depth[i] = (float)z;
             memcpy(c->rgb + 3 * i, rgb, 3 * sizeof(float));
@@ -348,12 +351,12 @@ canvas *canvas_downsample(const canvas *src, int f)
             float zmin = INFINITY;
             for (int j = 0; j < f; j++)
                 for (int i = 0; i < f; i++) {
-                    size_t s = (size_t)(y * f + j) * src->w + (x * f + i);
-                    for (int k = 0; k < 3; k++) acc[k] += src->rgb[3 * s + k];
+                    size_t s = pixel(src, x * f + i, y * f + j);
+                    for (int k = 0; k < 3; k++) acc[k] += src->rgb[3 * s + (size_t)k];
                     if (src->depth[s] < zmin) zmin = src->depth[s];
                 }
-            size_t o = (size_t)y * d->w + x;
-            for (int k = 0; k < 3; k++) d->rgb[3 * o + k] = acc[k] * inv;
+            size_t o = pixel(d, x, y);
+            for (int k = 0; k < 3; k++) d->rgb[3 * o + (size_t)k] = acc[k] * inv;
             d->depth[o] = zmin;
         }
     return d;
@@ -367,7 +370,7 @@ void canvas_blit(canvas *dst, const canvas *src, int x, int y)
         for (int i = 0; i < src->w; i++) {
             int tx = x + i;
             if (tx < 0 || tx >= dst->w) continue;
-            memcpy(dst->rgb + 3 * ((size_t)ty * dst->w + tx), src->rgb + 3 * ((size_t)j * src->w + i),
+            memcpy(dst->rgb + 3 * pixel(dst, tx, ty), src->rgb + 3 * pixel(src, i, j),
                    3 * sizeof(float));
         }
     }
@@ -393,7 +396,8 @@ int canvas_write_png(const canvas *c, const char *path, char *err, size_t errlen
         snprintf(err, errlen, "%s: exists and is not a PNG; not overwritten (choose another name)", path);
         return -1;
     }
-    unsigned char *buf = malloc((size_t)c->w * c->h * 3);
+    size_t nbuf = (size_t)c->w * (size_t)c->h * 3;
+    unsigned char *buf = malloc(nbuf);
     png_bytep *rows = malloc((size_t)c->h * sizeof *rows);
     if (!buf || !rows) {
         free(buf);
@@ -401,12 +405,12 @@ int canvas_write_png(const canvas *c, const char *path, char *err, size_t errlen
         snprintf(err, errlen, "%s: out of memory", path);
         return -1;
     }
-    for (size_t i = 0; i < (size_t)c->w * c->h * 3; i++) {
+    for (size_t i = 0; i < nbuf; i++) {
         float v = c->rgb[i];
         v = v != v ? 0.f : v < 0 ? 0.f : v > 1 ? 1.f : v;
         buf[i] = (unsigned char)lrintf(v * 255.f);
     }
-    for (int y = 0; y < c->h; y++) rows[y] = buf + (size_t)y * c->w * 3;
+    for (int y = 0; y < c->h; y++) rows[y] = buf + (size_t)y * (size_t)c->w * 3;
 
     FILE *fp = fopen(path, "wb");
     if (!fp) {

@@ -535,7 +535,7 @@ static int figure2(const opts *o)
         x[n - lag] = n - lag; /* plotted against p */
         for (int j = 0; j < o->nq; j++) {
             double a = stf_history_weight(o->q[j], n - lag, n);
-            w[(size_t)j * (n + 1) + (n - lag)] = a;
+            w[(size_t)j * (size_t)(n + 1) + (size_t)(n - lag)] = a;
             if (a > hi) hi = a;
             fprintf(fp, ",%.12g", a);
         }
@@ -572,7 +572,7 @@ static int figure2(const opts *o)
     y_range(0, hi, &f.v0, &f.v1);
     draw_frame(c, &f, NULL, "past time step p", "weight a(p, n)");
     for (int j = 0; j < o->nq; j++) {
-        const double *wj = w + (size_t)j * (n + 1);
+        const double *wj = w + (size_t)j * (size_t)(n + 1);
         draw_curve(c, &f, x, wj, n + 1, PALETTE[j % MAXD], 2, 0);
         if (n <= 120)
             for (int p = 0; p <= n; p++) canvas_circle(c, canvas_axes_x(&f, x[p]), canvas_axes_y(&f, wj[p]), 3.6, PALETTE[j % MAXD]);
@@ -599,7 +599,8 @@ static int figure_stiffness(const opts *o, int which, const profile *p, double d
     }
     for (int j = 0; j < o->nq; j++)
         for (int e = 0; e < o->nd; e++)
-            if (stiffness_series(o->q[j], o->d[e], p, dt, o->k_hist, k + (size_t)(j * o->nd + e) * n) != 0) {
+            if (stiffness_series(o->q[j], o->d[e], p, dt, o->k_hist,
+                                 k + (size_t)(j * o->nd + e) * (size_t)n) != 0) {
                 fprintf(stderr, "stf history: out of memory\n");
                 free(k);
                 return -1;
@@ -630,7 +631,7 @@ static int figure_stiffness(const opts *o, int which, const profile *p, double d
     fprintf(fp, "\n");
     for (int i = 0; i < n; i++) {
         fprintf(fp, "%d,%.10g,%.10g", i, p->t[i], p->v[i]);
-        for (int s = 0; s < nk; s++) fprintf(fp, ",%.12g", k[(size_t)s * n + i]);
+        for (int s = 0; s < nk; s++) fprintf(fp, ",%.12g", k[(size_t)s * (size_t)n + (size_t)i]);
         fprintf(fp, "\n");
     }
     if (fclose(fp) != 0) {
@@ -697,7 +698,7 @@ static int figure_stiffness(const opts *o, int which, const profile *p, double d
         double hi = 0;
         for (int e = 0; e < o->nd; e++)
             for (int i = 0; i < n; i++) {
-                double v = k[(size_t)(j * o->nd + e) * n + i];
+                double v = k[(size_t)(j * o->nd + e) * (size_t)n + (size_t)i];
                 if (v > hi) hi = v;
             }
         y_range(0, hi, &f.v0, &f.v1);
@@ -706,7 +707,7 @@ static int figure_stiffness(const opts *o, int which, const profile *p, double d
         /* windows from the longest down (solid), then the full history dashed on top */
         for (int e = o->nd - 1; e >= 0; e--) {
             int ee = e == 0 ? o->nd - 1 : e - 1;
-            const double *ks = k + (size_t)(j * o->nd + ee) * n;
+            const double *ks = k + (size_t)(j * o->nd + ee) * (size_t)n;
             draw_curve(c, &f, p->t, ks, n, it[ee].rgb, it[ee].dashed ? 2.4 : 2.6, it[ee].dashed);
         }
     }

@@ -167,7 +167,7 @@ static void hull_faces(body_view *b)
     int n = b->npoints;
     if (n < 4 || n > 64) return;
     int cap = 64, nt = 0;
-    int *t = malloc(3 * cap * sizeof *t);
+    int *t = malloc(3 * (size_t)cap * sizeof *t);
     if (!t) return;
     const double *p = b->points;
     double scale = 0;
@@ -192,7 +192,7 @@ static void hull_faces(body_view *b)
                 }
                 if (pos && neg) continue;
                 if (nt == cap) {
-                    int *nt2 = realloc(t, 3 * 2 * cap * sizeof *t);
+                    int *nt2 = realloc(t, 3 * 2 * (size_t)cap * sizeof *t);
                     if (!nt2) break;
                     t = nt2;
                     cap *= 2;

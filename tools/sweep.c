@@ -198,7 +198,8 @@ static int parse_vary(const char *spec, sweep_key *k)
         for (int i = 0; i < n; i++) {
             char buf[32];
             /* the ends exactly; %.10g so that 0:1:11 gives 0.1, not 0.10000000000000001 */
-            snprintf(buf, sizeof buf, "%.10g", n == 1 ? a : i == n - 1 ? b : a + (b - a) * i / (n - 1));
+            snprintf(buf, sizeof buf, "%.10g",
+                     n == 1 ? a : i == n - 1 ? b : a + (b - a) * i / (double)(n - 1));
             add_value(k, dup_n(buf, strlen(buf)));
         }
         return 0;
