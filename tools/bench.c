@@ -1094,9 +1094,11 @@ static void plot_pareto(const char *path, acc_run *runs, int nruns, double budge
         for (int i = 0; i < nruns; i++) {
             if (!runs[i].ok || strcmp(runs[i].knob, KNOBS[k])) continue;
             /* one line per mode: window d, soe K (full and its 0 error stand alone) */
-            char mode[16];
-            snprintf(mode, sizeof mode, "%s", runs[i].setting);
-            mode[strcspn(mode, " =")] = 0;
+            char mode[16]; /* the setting's first word, at most 15 characters */
+            size_t len = strcspn(runs[i].setting, " =");
+            if (len >= sizeof mode) len = sizeof mode - 1;
+            memcpy(mode, runs[i].setting, len);
+            mode[len] = 0;
             double x = PX(runs[i].cpu), y = PY(fmax(runs[i].err_body, 1e-5));
             if (!strcmp(series, mode)) canvas_line(c, px, py, x, y, col[k], 2);
             canvas_circle(c, x, y, 5, col[k]);
