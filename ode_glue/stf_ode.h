@@ -43,9 +43,9 @@ typedef struct stf_ode_attach_def {
                         0 */
 } stf_ode_attach_def;
 
-stf_ode_attach_def stf_ode_default_attach_def(void);
+STF_API stf_ode_attach_def stf_ode_default_attach_def(void);
 /* 0, or -1 with a message naming the bad field ("attach def: friction = 2: ..."). */
-int stf_ode_check_attach_def(const stf_ode_attach_def *def, char *err, size_t errlen);
+STF_API int stf_ode_check_attach_def(const stf_ode_attach_def *def, char *err, size_t errlen);
 
 /* Surface of the coupler's own ODE contacts (body-body, body-static geom), made when no
  * collision hook is set (stf_ode_set_collide). ODE's dContactBounce, SoftERP and SoftCFM
@@ -60,9 +60,9 @@ typedef struct stf_ode_contact_def {
 } stf_ode_contact_def;
 #define STF_ODE_MAX_CONTACTS 64
 
-stf_ode_contact_def stf_ode_default_contact_def(void);
+STF_API stf_ode_contact_def stf_ode_default_contact_def(void);
 /* 0, or -1 with a message naming the bad field. */
-int stf_ode_check_contact_def(const stf_ode_contact_def *def, char *err, size_t errlen);
+STF_API int stf_ode_check_contact_def(const stf_ode_contact_def *def, char *err, size_t errlen);
 
 /* How stf_ode_step splits an app step and steps ODE. */
 enum stf_ode_stepper {
@@ -80,8 +80,8 @@ typedef struct stf_ode_step_def {
                              (dWorldSetQuickStepNumIterations) before each quick step; 20 */
 } stf_ode_step_def;
 
-stf_ode_step_def stf_ode_default_step_def(void);
-int stf_ode_check_step_def(const stf_ode_step_def *def, char *err, size_t errlen);
+STF_API stf_ode_step_def stf_ode_default_step_def(void);
+STF_API int stf_ode_check_step_def(const stf_ode_step_def *def, char *err, size_t errlen);
 
 /* What the steps took (stf_ode_get_stats). */
 typedef struct stf_ode_stats {
@@ -104,40 +104,40 @@ typedef void (*stf_ode_collide_fn)(void *data, dJointGroupID contacts, double dt
 
 /* The coupler does not own world, space or fluid. space may be 0: then the coupler makes no
  * ODE contacts of its own (a collision hook, or none). NULL when out of memory. */
-stf_ode *stf_ode_create(dWorldID world, dSpaceID space, stf_fluid *fluid);
-void stf_ode_destroy(stf_ode *c);
+STF_API stf_ode *stf_ode_create(dWorldID world, dSpaceID space, stf_fluid *fluid);
+STF_API void stf_ode_destroy(stf_ode *c);
 /* Each returns 0, or -1 with a message naming the bad field (the coupler keeps its def). */
-int stf_ode_set_contact(stf_ode *c, const stf_ode_contact_def *def, char *err, size_t errlen);
-int stf_ode_set_step(stf_ode *c, const stf_ode_step_def *def, char *err, size_t errlen);
+STF_API int stf_ode_set_contact(stf_ode *c, const stf_ode_contact_def *def, char *err, size_t errlen);
+STF_API int stf_ode_set_step(stf_ode *c, const stf_ode_step_def *def, char *err, size_t errlen);
 /* fn NULL: back to the coupler's own collision of `space`. */
-void stf_ode_set_collide(stf_ode *c, stf_ode_collide_fn fn, void *data);
+STF_API void stf_ode_set_collide(stf_ode *c, stf_ode_collide_fn fn, void *data);
 
 /* Couples every geom of body (sphere, box, capsule, cylinder, plane; convex via
  * stf_ode_attach_convex). def may be NULL for the defaults. Returns 0, -1 with err. */
-int stf_ode_attach_body(stf_ode *c, dBodyID body, const stf_ode_attach_def *def, char *err,
+STF_API int stf_ode_attach_body(stf_ode *c, dBodyID body, const stf_ode_attach_def *def, char *err,
                         size_t errlen);
 /* Couples one geom; a geom with no body is a fixed wall. */
-int stf_ode_attach_geom(stf_ode *c, dGeomID geom, const stf_ode_attach_def *def, char *err,
+STF_API int stf_ode_attach_geom(stf_ode *c, dGeomID geom, const stf_ode_attach_def *def, char *err,
                         size_t errlen);
 /* A convex geom: ODE does not hand its points back, so pass them (body frame, 3*n). */
-int stf_ode_attach_convex(stf_ode *c, dGeomID geom, const double *points, int npoints,
+STF_API int stf_ode_attach_convex(stf_ode *c, dGeomID geom, const double *points, int npoints,
                           const stf_ode_attach_def *def, char *err, size_t errlen);
 /* An open-top container following body (0 for a fixed one at pos): inner size (x, y,
  * height) in m, wall thickness in m, frame origin at the centre of the floor's top face.
  * The fluid sees its inside as free and the walls as solid; ODE sees it through the geoms
  * the caller gave the body (or the static geoms it made). */
-int stf_ode_attach_container(stf_ode *c, dBodyID body, const double pos[3], const double size[3],
+STF_API int stf_ode_attach_container(stf_ode *c, dBodyID body, const double pos[3], const double size[3],
                              double wall, const stf_ode_attach_def *def, char *err, size_t errlen);
 
 /* Removes particles that start inside attached solids (call before the first step).
  * Returns the number removed. */
-int stf_ode_remove_overlaps(stf_ode *c);
+STF_API int stf_ode_remove_overlaps(stf_ode *c);
 
 /* Advances fluid and world by dt seconds (> 0, finite) in stf_ode_substeps(c, dt) equal
  * substeps, each coupled (see the top of this file). Returns 0; -1 on a numerical failure
  * of the fluid, a bad dt or an ODE step that failed (stf_ode_failure tells what). After a
  * failure the state is that of the substep that failed: stop. */
-int stf_ode_step(stf_ode *c, double dt);
+STF_API int stf_ode_step(stf_ode *c, double dt);
 /* The number of substeps stf_ode_step(c, dt) would take now (1 with adaptive 0), from the
  * state as it is: m = ceil of the largest of
  *   stiffness   dt sqrt(k_eff / 0.25), k_eff (1/s^2) the larger of the pressure's k/h and
@@ -148,22 +148,22 @@ int stf_ode_step(stf_ode *c, double dt);
  *               solid's speed plus its rotation at its bounding radius;
  *   body travel |v| dt / (0.5 r), r a dynamic body's geom inradius;
  * at most max_substeps. The same function splits the `stf run` steps. */
-int stf_ode_substeps(const stf_ode *c, double dt);
+STF_API int stf_ode_substeps(const stf_ode *c, double dt);
 /* What the steps took so far. */
-void stf_ode_get_stats(const stf_ode *c, stf_ode_stats *st);
+STF_API void stf_ode_get_stats(const stf_ode *c, stf_ode_stats *st);
 /* The last failure, "" before any. */
-const char *stf_ode_failure(const stf_ode *c);
+STF_API const char *stf_ode_failure(const stf_ode *c);
 
 /* The force (N) and torque (N m, about the body's centre) the fluid put on body over the last
  * stf_ode_step: its substeps' impulses over dt; zero for a body that is not attached. */
-void stf_ode_body_fluid_force(const stf_ode *c, dBodyID body, double force[3], double torque[3]);
+STF_API void stf_ode_body_fluid_force(const stf_ode *c, dBodyID body, double force[3], double torque[3]);
 
 /* Lets the fluid settle around the attached solids held still (their velocities taken as
  * zero, ODE not stepped) for `steps` fluid steps of dt, every velocity damped by
  * exp(-dt / tau) after each, then sets the fluid's clock back to 0: the fluid starts at rest
  * with the pressure that holds it up (scene key fluid.settle). 0, or -1 on a numerical
  * failure (stf_ode_failure). */
-int stf_ode_settle(stf_ode *c, double dt, int steps, double tau);
+STF_API int stf_ode_settle(stf_ode *c, double dt, int steps, double tau);
 
 #ifdef __cplusplus
 }

@@ -21,6 +21,16 @@
 #include <stddef.h>
 #include <stdint.h>
 
+/* STF_API marks the library's public functions: the only symbols a shared libstf,
+ * libstf_ode or libstf_io exports (the libraries are built with hidden visibility). */
+#ifndef STF_API
+#if defined(__GNUC__) || defined(__clang__)
+#define STF_API __attribute__((visibility("default")))
+#else
+#define STF_API
+#endif
+#endif
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -209,7 +219,7 @@ typedef struct stf_fluid_def {
 } stf_fluid_def;
 
 /* Defaults: a cornstarch-like viscoelastic fluid at 1 cm spacing with every effect on. */
-stf_fluid_def stf_default_fluid_def(void);
+STF_API stf_fluid_def stf_default_fluid_def(void);
 
 /* Shapes a particle collides with. Distances are signed: > 0 outside the solid. */
 enum stf_shape {
@@ -236,7 +246,7 @@ typedef struct stf_collider_def {
     int stick;              /* 1: section 3.3 boundary treatment applies at this surface */
 } stf_collider_def;
 
-stf_collider_def stf_default_collider_def(void);
+STF_API stf_collider_def stf_default_collider_def(void);
 /* Whether a container's walls and floor of thickness wall (m) are solid from both sides for a
  * fluid of this spacing (m): when they are at least a spacing thick. A particle in such a wall
  * leaves by the nearest face, inner or outer; a thinner wall cannot tell the sides apart (a
@@ -246,118 +256,118 @@ static inline int stf_wall_two_sided(double wall, double spacing) { return wall 
 /* A bounded shape's size about its body origin: the radius of the largest sphere inside it
  * (m; 0 for a convex hull that does not hold the origin) and of the smallest sphere holding
  * it (m). Returns 0; -1 for planes and containers (unbounded) or an invalid def. */
-int stf_collider_extent(const stf_collider_def *def, double *inradius, double *bound);
+STF_API int stf_collider_extent(const stf_collider_def *def, double *inradius, double *bound);
 
 typedef struct stf_fluid stf_fluid;
 
 /* Creates a fluid from def; checks every field. Returns 0, or -1 with a message in err. */
-int stf_fluid_create(const stf_fluid_def *def, stf_fluid **out, char *err, size_t errlen);
-void stf_fluid_destroy(stf_fluid *f);
+STF_API int stf_fluid_create(const stf_fluid_def *def, stf_fluid **out, char *err, size_t errlen);
+STF_API void stf_fluid_destroy(stf_fluid *f);
 
 /* Fills the box [lo,hi] (m) with particles on a cubic lattice at the fluid's spacing,
  * moving with velocity v (m/s). Returns the number of particles added. */
-int stf_fluid_add_block(stf_fluid *f, const double lo[3], const double hi[3], const double v[3]);
+STF_API int stf_fluid_add_block(stf_fluid *f, const double lo[3], const double hi[3], const double v[3]);
 /* Fills a ball of radius r (m) around c (m) with particles on a cubic lattice through c
  * (the lattice sites closer than r to c), moving with velocity v (m/s). Returns the number
  * of particles added, or -1 (out of memory, or more than 10^8 sites). */
-int stf_fluid_add_ball(stf_fluid *f, const double c[3], double r, const double v[3]);
+STF_API int stf_fluid_add_ball(stf_fluid *f, const double c[3], double r, const double v[3]);
 /* Adds one particle. Returns its index. */
-int stf_fluid_add_particle(stf_fluid *f, const double x[3], const double v[3]);
+STF_API int stf_fluid_add_particle(stf_fluid *f, const double x[3], const double v[3]);
 
 /* Colliders: solids the particles cannot enter. Returns an id >= 0, or -1 with err. */
-int stf_fluid_add_collider(stf_fluid *f, const stf_collider_def *def, char *err, size_t errlen);
+STF_API int stf_fluid_add_collider(stf_fluid *f, const stf_collider_def *def, char *err, size_t errlen);
 /* Sets a collider's pose (position m, rotation 3x3 row-major body->world) and its velocity
  * (linear m/s at the position, angular rad/s). */
-void stf_fluid_set_collider_state(stf_fluid *f, int id, const double pos[3], const double rot[9],
+STF_API void stf_fluid_set_collider_state(stf_fluid *f, int id, const double pos[3], const double rot[9],
                                   const double vel[3], const double angvel[3]);
 /* Removes the particles whose centres lie inside collider id (set-up of overlapping bodies).
  * Returns how many were removed, or -1 when out of memory. */
-int stf_fluid_remove_inside(stf_fluid *f, int id);
+STF_API int stf_fluid_remove_inside(stf_fluid *f, int id);
 /* The impulse (N s) the fluid gave collider id during the last step, and its moment about
  * the collider position (N m s). */
-void stf_fluid_collider_impulse(const stf_fluid *f, int id, double impulse[3], double moment[3]);
+STF_API void stf_fluid_collider_impulse(const stf_fluid *f, int id, double impulse[3], double moment[3]);
 /* The overlap removal's mass-weighted displacement (kg m) during the last step: the sum of
  * m delta over the particles collider id pushed out of itself by delta without changing
  * their velocity. A dynamic body of mass M moves by -shift / M to keep the centre of mass
  * of fluid and body where it was (stf_ode does); the moment above then keeps the angular
  * momentum, taking the particles' velocities relative to the collider's velocity. */
-void stf_fluid_collider_shift(const stf_fluid *f, int id, double shift[3]);
+STF_API void stf_fluid_collider_shift(const stf_fluid *f, int id, double shift[3]);
 /* Signed distance (m) from x to the collider's surface (> 0 outside). */
-double stf_fluid_collider_distance(const stf_fluid *f, int id, const double x[3]);
+STF_API double stf_fluid_collider_distance(const stf_fluid *f, int id, const double x[3]);
 
 /* Advances the fluid by dt seconds (one substep of the paper's Algorithm 1).
  * Returns 0, or -1 on a numerical failure (see stf_fluid_failure). */
-int stf_fluid_step(stf_fluid *f, double dt);
+STF_API int stf_fluid_step(stf_fluid *f, double dt);
 /* After a failed step: what failed ("NaN in position after effect 'pressure', particle 12"). */
-const char *stf_fluid_failure(const stf_fluid *f);
+STF_API const char *stf_fluid_failure(const stf_fluid *f);
 
 /* Number of OpenMP threads used (0 = OpenMP default). Results do not depend on it. */
-void stf_set_threads(int n);
+STF_API void stf_set_threads(int n);
 
 /* State, copied out (arrays of 3*n doubles). */
-int stf_fluid_count(const stf_fluid *f);
-double stf_fluid_particle_mass(const stf_fluid *f);
-double stf_fluid_time(const stf_fluid *f);
-long stf_fluid_steps(const stf_fluid *f);
-void stf_fluid_get_positions(const stf_fluid *f, double *x);
-void stf_fluid_get_velocities(const stf_fluid *f, double *v);
+STF_API int stf_fluid_count(const stf_fluid *f);
+STF_API double stf_fluid_particle_mass(const stf_fluid *f);
+STF_API double stf_fluid_time(const stf_fluid *f);
+STF_API long stf_fluid_steps(const stf_fluid *f);
+STF_API void stf_fluid_get_positions(const stf_fluid *f, double *x);
+STF_API void stf_fluid_get_velocities(const stf_fluid *f, double *v);
 /* Multiplies every particle's velocity by factor (the settling before t = 0, stf_ode_settle). */
-void stf_fluid_scale_velocities(stf_fluid *f, double factor);
+STF_API void stf_fluid_scale_velocities(stf_fluid *f, double factor);
 /* Sets collider id's velocity and angular velocity to zero (its pose stays). */
-void stf_fluid_hold_collider(stf_fluid *f, int id);
+STF_API void stf_fluid_hold_collider(stf_fluid *f, int id);
 /* Sets the fluid's time and step count back to 0 (after the settling). */
-void stf_fluid_reset_clock(stf_fluid *f);
+STF_API void stf_fluid_reset_clock(stf_fluid *f);
 /* Forgets the history (Eq. 3's past velocities and every spring's history stiffness): the
  * fluid's past starts now, as for a fluid long at rest. After the settling, whose start-up
  * motion is not the material's past. The window starts again at the next step. */
-void stf_fluid_forget_history(stf_fluid *f);
+STF_API void stf_fluid_forget_history(stf_fluid *f);
 /* Per particle: mean history stiffness of its springs (1/s^2), 0 without history. */
-void stf_fluid_get_history_stiffness(const stf_fluid *f, float *k);
+STF_API void stf_fluid_get_history_stiffness(const stf_fluid *f, float *k);
 /* Per particle: persistent id (index at creation). */
-void stf_fluid_get_ids(const stf_fluid *f, int32_t *id);
+STF_API void stf_fluid_get_ids(const stf_fluid *f, int32_t *id);
 /* Number of springs (0 without the springs effect). */
-long stf_fluid_spring_count(const stf_fluid *f);
+STF_API long stf_fluid_spring_count(const stf_fluid *f);
 /* Bytes allocated for an effect's own storage (0 when the effect is off). */
-size_t stf_fluid_effect_bytes(const stf_fluid *f, unsigned effect);
+STF_API size_t stf_fluid_effect_bytes(const stf_fluid *f, unsigned effect);
 /* Seconds spent in an effect's stage since creation (wall clock). */
-double stf_fluid_effect_seconds(const stf_fluid *f, unsigned effect);
+STF_API double stf_fluid_effect_seconds(const stf_fluid *f, unsigned effect);
 /* The effective history window in steps (0 without history). */
-int stf_fluid_history_steps(const stf_fluid *f);
+STF_API int stf_fluid_history_steps(const stf_fluid *f);
 /* The effective parameters (the def with every default and derived value filled in: h,
  * particle mass, rest densities, history window), as YAML "key: value  # unit" lines.
  * Returns the length written (like snprintf). */
-int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len);
+STF_API int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len);
 /* The Carreau-Yasuda solver's statistics of the last step. */
-void stf_fluid_solver_stats(const stf_fluid *f, stf_solver_stats *st);
+STF_API void stf_fluid_solver_stats(const stf_fluid *f, stf_solver_stats *st);
 /* Per particle: pressure (Pa) of the last step's projection; zeros for the Clavet model. */
-void stf_fluid_get_pressures(const stf_fluid *f, double *p);
+STF_API void stf_fluid_get_pressures(const stf_fluid *f, double *p);
 /* The Carreau-Yasuda viscosity (Eq. 3) at shear rate g (1/s), m^2/s. */
-double stf_cy_viscosity(const stf_cy_def *cy, double g);
+STF_API double stf_cy_viscosity(const stf_cy_def *cy, double g);
 /* The rest density rho0 (kg/m^3) of the Carreau-Yasuda model: the kernel sum of the cubic
  * lattice at the fluid's spacing times the particle mass (close to def.density). */
-double stf_fluid_cy_rest_density(const stf_fluid *f);
+STF_API double stf_fluid_cy_rest_density(const stf_fluid *f);
 /* Steps in which the springs saturated: some particle's spring gains dt^2 k (1 - L/h)
  * summed to more than 1 and were scaled down so the step cannot overshoot (springs.c). The
  * history stiffness beyond that is rigid within a step. 0 without springs. */
-long stf_fluid_saturated_steps(const stf_fluid *f);
+STF_API long stf_fluid_saturated_steps(const stf_fluid *f);
 
 /* Largest particle speed, m/s (0 without particles). */
-double stf_fluid_max_speed(const stf_fluid *f);
+STF_API double stf_fluid_max_speed(const stf_fluid *f);
 /* The last step's largest sum over a particle's springs of dt^2 k (1 - L/h) (before any
  * saturation; dimensionless, 0 without springs): the spring network's stiffness number, which
  * limits the Jacobi step; 0 with relaxation gauss_seidel, stable at any gain. */
-double stf_fluid_spring_gain(const stf_fluid *f);
+STF_API double stf_fluid_spring_gain(const stf_fluid *f);
 /* The length of the last step, s (0 before the first). */
-double stf_fluid_last_dt(const stf_fluid *f);
+STF_API double stf_fluid_last_dt(const stf_fluid *f);
 /* The definition the fluid was created with, as given (h 0 means 2 spacings). */
-void stf_fluid_get_def(const stf_fluid *f, stf_fluid_def *def);
+STF_API void stf_fluid_get_def(const stf_fluid *f, stf_fluid_def *def);
 
 /* FNV-1a hash of positions and velocities, for determinism tests. */
-uint64_t stf_fluid_hash(const stf_fluid *f);
+STF_API uint64_t stf_fluid_hash(const stf_fluid *f);
 
 /* History weights (Eq. 3). For n >= 1 (steps since the start of history) and p in [0,n]:
  * the weight a_{p,n}. Exposed for tests and the history analysis. */
-double stf_history_weight(double q, long p, long n);
+STF_API double stf_history_weight(double q, long p, long n);
 
 #ifdef __cplusplus
 }

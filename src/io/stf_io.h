@@ -112,16 +112,16 @@ typedef struct stf_override {
  * in err when that is not a count a run can take (1 .. STF_MAX_STEPS), or duration or dt is
  * not a finite number > 0. The scene loader holds a scene's own duration to it; a tool that
  * runs a scene for another duration (stf run --duration) holds that one. */
-long stf_run_steps(double duration, double dt, char *err, size_t errlen);
+STF_API long stf_run_steps(double duration, double dt, char *err, size_t errlen);
 
 /* Loads and checks a scene. Returns 0; or 2 (bad input) with
  * "FILE:LINE:COL: KEY: what is wrong (allowed: ...)" in err. */
-int stf_scene_load(const char *path, const stf_override *ov, int nov, stf_scene **out, char *err,
+STF_API int stf_scene_load(const char *path, const stf_override *ov, int nov, stf_scene **out, char *err,
                    size_t errlen);
 /* Same from a string; name is used in messages as the file name. */
-int stf_scene_load_string(const char *name, const char *text, const stf_override *ov, int nov,
+STF_API int stf_scene_load_string(const char *name, const char *text, const stf_override *ov, int nov,
                           stf_scene **out, char *err, size_t errlen);
-void stf_scene_free(stf_scene *s);
+STF_API void stf_scene_free(stf_scene *s);
 
 #ifdef __cplusplus
 }
