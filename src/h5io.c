@@ -178,15 +178,33 @@ static int locked_by_other(const char *path)
     return held;
 }
 
-/* H5Fopen(path, RDWR) with the no-eviction cache, with or without HDF5's file lock. */
-static hid_t open_rdwr(const char *path, int locking)
+static herr_t find_lock_error(unsigned n, const H5E_error2_t *e, void *found)
 {
+    (void)n;
+    if (e->min_num == H5E_CANTLOCKFILE) *(int *)found = 1;
+    return 0;
+}
+
+/* 1 if the HDF5 call that just failed did so because the file was locked. */
+static int failed_on_lock(void)
+{
+    int found = 0;
+    H5Ewalk2(H5E_DEFAULT, H5E_WALK_DOWNWARD, find_lock_error, &found);
+    return found;
+}
+
+/* H5Fopen(path, RDWR) with the no-eviction cache, with or without HDF5's file lock; when it
+ * fails, *on_lock tells whether a lock held by another process was why. */
+static hid_t open_rdwr(const char *path, int locking, int *on_lock)
+{
+    *on_lock = 0;
     hid_t fapl = no_eviction_fapl();
     if (fapl >= 0 && !locking && H5Pset_file_locking(fapl, 0, 1) < 0) {
         close_id(fapl);
         fapl = -1;
     }
     hid_t f = fapl < 0 ? -1 : H5Fopen(path, H5F_ACC_RDWR, fapl);
+    if (f < 0 && fapl >= 0) *on_lock = failed_on_lock(); /* before the next call clears it */
     close_id(fapl);
     return f;
 }
@@ -195,19 +213,23 @@ static hid_t open_rdwr(const char *path, int locking)
  * it (see above). Returns 0, or -1 with h->err set. */
 static int open_file(stf_h5 *h)
 {
-    int waited = 0, budget = h->readers_stay ? 0 : LOCK_WAIT_MS;
+    int waited = 0, budget = h->readers_stay ? 0 : LOCK_WAIT_MS, unexplained = 0, on_lock;
     for (;;) {
-        if ((h->file = open_rdwr(h->path, 1)) >= 0) {
+        if ((h->file = open_rdwr(h->path, 1, &on_lock)) >= 0) {
             h->readers_stay = 0;
             return 0;
         }
-        if (!locked_by_other(h->path)) break;
+        if (!on_lock) { /* not a reader's lock: try once more, then give up */
+            if (++unexplained == 2) break;
+            sleep_ms(10);
+            continue;
+        }
         if (waited < budget) {
             sleep_ms(10);
             waited += 10;
             continue;
         }
-        if ((h->file = open_rdwr(h->path, 0)) >= 0) {
+        if ((h->file = open_rdwr(h->path, 0, &on_lock)) >= 0) {
             h->readers_stay = 1;
             return 0;
         }
