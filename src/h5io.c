@@ -171,7 +171,7 @@ static void sleep_ms(int ms)
 /* 1 if another process holds a lock on path (an HDF5 reader that has it open). */
 static int locked_by_other(const char *path)
 {
-    int fd = open(path, O_RDONLY);
+    int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC); /* no wait on a fifo */
     if (fd < 0) return 0;
     int held = flock(fd, LOCK_EX | LOCK_NB) != 0 && errno == EWOULDBLOCK;
     close(fd); /* releases the probe's lock if it got one */
