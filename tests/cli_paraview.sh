@@ -10,8 +10,9 @@
 #     ends with exit 0.
 #
 # usage: bash cli_paraview.sh STF_BINARY PROJECT_DIR   (run in the build's tests directory)
-command -v pvbatch >/dev/null && command -v xvfb-run >/dev/null ||
-    { echo "cli_paraview: no pvbatch or xvfb-run (Debian: paraview python3-paraview xvfb): skipped"; exit 77; }
+command -v pvbatch >/dev/null && command -v xvfb-run >/dev/null &&
+    /usr/bin/python3 -c "import paraview" 2>/dev/null ||
+    { echo "cli_paraview: no pvbatch, xvfb-run or ParaView's Python modules (Debian: paraview python3-paraview xvfb): skipped"; exit 77; }
 . "$(dirname "$0")/lib_cli.sh" cli_paraview "$@"
 export OMP_NUM_THREADS=1 OMP_WAIT_POLICY=passive
 PY=/usr/bin/python3
