@@ -1,8 +1,11 @@
 /* test_h5io.c - the run output file: write frames, bodies, attributes and metrics, read
  * them back with the reader, check the XDMF sidecar, let h5dump and h5py open the file,
- * read a file left by a killed writer, and reject a file of random bytes. */
+ * read a file left by a killed writer, and reject a file of random bytes; a writer that
+ * releases the file between frames, with body meshes, readers in between and one in
+ * another process holding it open. */
 #define _POSIX_C_SOURCE 200809L
 #include "h5io.h"
+#include "stf.h"
 #include "test_util.h"
 
 #include <hdf5.h>
@@ -10,6 +13,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/wait.h>
+#include <time.h>
 #include <unistd.h>
 
 #define NP 50 /* particles of the non-empty frames */
@@ -267,6 +271,151 @@ static void check_corrupt(void)
               strstr(err, "/nonexistent-dir/x.h5: "), "create in missing dir: %s", err);
 }
 
+/* 1 if dataset `name` exists in the file at path (opened read-only here). */
+static int has_object(const char *path, const char *name)
+{
+    hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
+    int there = f >= 0 && H5Lexists(f, "body_meshes", H5P_DEFAULT) > 0 &&
+                H5Lexists(f, "body_meshes/ball", H5P_DEFAULT) > 0 && H5Lexists(f, name, H5P_DEFAULT) > 0;
+    if (f >= 0) H5Fclose(f);
+    return there;
+}
+
+/* The mean of /body_meshes/ball/Step#k's vertices into c (a sphere's centre). */
+static void mesh_centre(const char *path, int k, double c[3])
+{
+    char name[64];
+    snprintf(name, sizeof name, "body_meshes/ball/Step#%d", k);
+    c[0] = c[1] = c[2] = NAN;
+    hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
+    hid_t d = f < 0 ? -1 : H5Dopen2(f, name, H5P_DEFAULT);
+    hid_t s = d < 0 ? -1 : H5Dget_space(d);
+    hsize_t dims[2] = {0, 0};
+    if (s >= 0 && H5Sget_simple_extent_dims(s, dims, NULL) == 2 && dims[1] == 3 && dims[0] > 0) {
+        float *v = malloc(sizeof *v * 3 * dims[0]);
+        if (v && H5Dread(d, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, v) >= 0) {
+            c[0] = c[1] = c[2] = 0;
+            for (hsize_t i = 0; i < dims[0]; i++)
+                for (int j = 0; j < 3; j++) c[j] += v[3 * i + (hsize_t)j] / (double)dims[0];
+        }
+        free(v);
+    }
+    if (s >= 0) H5Sclose(s);
+    if (d >= 0) H5Dclose(d);
+    if (f >= 0) H5Fclose(f);
+}
+
+static int file_has(const char *path, const char *text)
+{
+    static char buf[1 << 16];
+    FILE *f = fopen(path, "r");
+    size_t len = f ? fread(buf, 1, sizeof buf - 1, f) : 0;
+    if (f) fclose(f);
+    buf[len] = 0;
+    return strstr(buf, text) != NULL;
+}
+
+/* A child that opens path with HDF5 (a reader's shared lock) and holds it for 1.5 s; returns
+ * once it has the file open. */
+static pid_t hold_open(const char *path)
+{
+    int fd[2];
+    if (pipe(fd) != 0) return -1;
+    fflush(NULL);
+    pid_t pid = fork();
+    if (pid == 0) {
+        close(fd[0]);
+        hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
+        char ok = f >= 0 ? 'y' : 'n';
+        if (write(fd[1], &ok, 1) != 1) _exit(3);
+        struct timespec ts = {1, 500000000L};
+        nanosleep(&ts, NULL);
+        int good = f >= 0 && H5Lexists(f, "Step#1", H5P_DEFAULT) > 0 && H5Fclose(f) >= 0;
+        _exit(good ? 0 : 4);
+    }
+    close(fd[1]);
+    char ok = 0;
+    if (pid < 0 || read(fd[0], &ok, 1) != 1 || ok != 'y') pid = -1;
+    close(fd[0]);
+    return pid;
+}
+
+static void check_shared(void)
+{
+    char stem[64], path[80], xpath[80], err[512];
+    temp_name(stem, sizeof stem, "shared");
+    snprintf(path, sizeof path, "%s.h5", stem);
+    snprintf(xpath, sizeof xpath, "%s.xmf", stem);
+    stf_h5 *h;
+    CHECK(stf_h5_create(path, &h, err, sizeof err) == 0, "create: %s", err);
+    if (!h) return;
+    stf_collider_def ball = stf_default_collider_def(), floor_def = ball;
+    ball.shape = STF_SHAPE_SPHERE;
+    ball.radius = 0.1;
+    floor_def.shape = STF_SHAPE_PLANE;
+    CHECK(stf_h5_body_mesh(h, "ball", &ball) == 0, "mesh: %s", stf_h5_last_error(h));
+    CHECK(stf_h5_body_mesh(h, "floor", &floor_def) == 1, "a plane got a mesh");
+    CHECK(stf_h5_body_mesh(h, "ball", &ball) == -1, "a body meshed twice");
+    double p[3] = {1, 2, 3}, q[4] = {1, 0, 0, 0}, zero[3] = {0, 0, 0};
+    pid_t holder = -1;
+    for (int fr = 0; fr < 3; fr++) {
+        CHECK(write_frame_k(h, fr) == 0, "frame %d: %s", fr, stf_h5_last_error(h));
+        p[2] = 3 - fr;
+        CHECK(stf_h5_body_pose(h, "ball", p, q) == 0, "pose %d: %s", fr, stf_h5_last_error(h));
+        CHECK(stf_h5_body_pose(h, "floor", p, q) == 0, "pose of a body without a mesh");
+        CHECK(stf_h5_release(h) == 0, "release %d: %s", fr, stf_h5_last_error(h));
+        CHECK(file_has(xpath, "TopologyType=\"Triangle\""), "sidecar %d: no body grid", fr);
+        /* released: body rows wait in memory */
+        for (int row = 0; row < 2; row++)
+            CHECK(stf_h5_body_append(h, "ball", fr + 0.1 * row, p, q, zero, zero, zero) == 0,
+                  "row while released: %s", stf_h5_last_error(h));
+        stf_h5r *r = NULL; /* a reader between frames (this process: the file is closed) */
+        CHECK(stf_h5r_open(path, &r, err, sizeof err) == 0, "open between frames: %s", err);
+        if (r) {
+            CHECK(stf_h5r_frames(r) == fr + 1, "frames %d between frames", stf_h5r_frames(r));
+            /* the rows kept since frame fr's release are not there (no body before frame 1) */
+            CHECK(stf_h5r_body_series(r, "ball", NULL, NULL, NULL, NULL, NULL, NULL) ==
+                      (fr ? 2 * fr : -1), "body rows before frame %d", fr);
+            stf_h5r_close(r);
+        }
+        /* another process opens the file and holds it while frame 2 is written */
+        if (fr == 1) CHECK((holder = hold_open(path)) > 0, "the holder could not open the file");
+    }
+    int status = -1;
+    CHECK(holder > 0 && waitpid(holder, &status, 0) == holder && WIFEXITED(status) &&
+              WEXITSTATUS(status) == 0, "holder status %d", status);
+    CHECK(stf_h5_close(h, err, sizeof err) == 0, "close: %s", err);
+    stf_h5r *r = NULL;
+    CHECK(stf_h5r_open(path, &r, err, sizeof err) == 0, "open: %s", err);
+    if (r) {
+        CHECK(stf_h5r_frames(r) == 3, "frames %d", stf_h5r_frames(r));
+        double *t = NULL;
+        CHECK(stf_h5r_body_series(r, "ball", &t, NULL, NULL, NULL, NULL, NULL) == 6, "body rows");
+        for (int i = 0; t && i < 6; i++) CHECK_NEAR(t[i], i / 2 + 0.1 * (i % 2), 1e-12, "row time");
+        free(t);
+        stf_h5r_close(r);
+    }
+    for (int fr = 0; fr < 3; fr++) {
+        double c[3];
+        mesh_centre(path, fr, c);
+        CHECK(fabs(c[0] - 1) < 1e-6 && fabs(c[1] - 2) < 1e-6 && fabs(c[2] - (3 - fr)) < 1e-6,
+              "mesh %d centre %g %g %g", fr, c[0], c[1], c[2]);
+    }
+    CHECK(!has_object(path, "body_meshes/floor"), "a plane's mesh");
+    CHECK(file_has(xpath, ":/body_meshes/ball/Step#2<"), "sidecar: no ball at frame 2");
+    CHECK(file_has(xpath, ":/body_meshes/ball/triangles<"), "sidecar: no triangles");
+    /* a resume after frame 2 drops frame 2's mesh (and keeps the others) */
+    CHECK(stf_h5_open_resume(path, 2, 4, &h, err, sizeof err) == 0, "resume: %s", err);
+    CHECK(stf_h5_close(h, err, sizeof err) == 0, "close resumed: %s", err);
+    CHECK(has_object(path, "body_meshes/ball/Step#1"), "resume dropped frame 1's mesh");
+    CHECK(!has_object(path, "body_meshes/ball/Step#2"), "resume kept frame 2's mesh");
+    CHECK(file_has(xpath, ":/body_meshes/ball/Step#1<") && !file_has(xpath, ":/body_meshes/ball/Step#2<"),
+          "resumed sidecar");
+    remove(path);
+    remove(xpath);
+    remove(stem);
+}
+
 int main(void)
 {
     char stem[64], path[80];
@@ -280,6 +429,7 @@ int main(void)
     remove(stem);
     check_killed();
     check_corrupt();
+    check_shared();
     /* Every HDF5 object the module opened was closed (files included). */
     CHECK(H5Fget_obj_count(H5F_OBJ_ALL, H5F_OBJ_ALL) == 0, "open HDF5 ids: %ld",
           (long)H5Fget_obj_count(H5F_OBJ_ALL, H5F_OBJ_ALL));

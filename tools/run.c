@@ -238,6 +238,7 @@ static int write_header(stf_h5 *h, const stf_sim *sim, double duration)
                      b->shape.half_length);
         snprintf(key, sizeof key, "body.%s.shape", b->name);
         if (shape[0]) rc |= stf_h5_attr_string(h, key, shape);
+        if (stf_h5_body_mesh(h, b->name, &b->shape) < 0) rc = -1; /* drawn by ParaView */
         if (k == 0) rc |= stf_h5_attr_string(h, "first_body", b->name);
     }
     return rc;
@@ -257,7 +258,13 @@ static int write_frame(stf_h5 *h, const stf_sim *sim, frame_buf *b)
     stf_fluid_get_velocities(f, b->v);
     stf_fluid_get_history_stiffness(f, b->k);
     stf_fluid_get_ids(f, b->id);
-    return stf_h5_write_frame(h, stf_fluid_time(f), n, b->x, b->v, b->k, b->id);
+    if (stf_h5_write_frame(h, stf_fluid_time(f), n, b->x, b->v, b->k, b->id) != 0) return -1;
+    for (int k = 0; k < sim->scene->nbodies; k++) { /* the bodies' meshes at this frame */
+        double p[3], q[4], v[3], w[3], F[3];
+        stf_sim_body_state(sim, k, p, q, v, w, F);
+        if (stf_h5_body_pose(h, sim->scene->bodies[k].name, p, q) != 0) return -1;
+    }
+    return 0;
 }
 
 static int write_bodies(stf_h5 *h, const stf_sim *sim)
@@ -420,6 +427,10 @@ static int start_run(const stf_scene *sc, const char *out, const stf_state *resu
             fprintf(stderr, "stf: cannot resume: %s\n", err);
             return 2;
         }
+        if (stf_h5_release(*h) != 0) {
+            fprintf(stderr, "stf: writing %s failed: %s\n", out, stf_h5_last_error(*h));
+            return 2;
+        }
         return 0;
     }
     if (stf_h5_create(out, h, err, sizeof err) != 0) {
@@ -430,7 +441,7 @@ static int start_run(const stf_scene *sc, const char *out, const stf_state *resu
     p->frames = 1;
     p->body_rows = 1;
     if (write_header(*h, *sim, duration) != 0 || write_frame(*h, *sim, b) != 0 ||
-        write_bodies(*h, *sim) != 0) {
+        write_bodies(*h, *sim) != 0 || stf_h5_release(*h) != 0) {
         fprintf(stderr, "stf: writing %s failed: %s\n", out, stf_h5_last_error(*h));
         return 2;
     }
@@ -506,11 +517,16 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
             double now = omp_get_wtime();
             int due = a->checkpoint_frames > 0 ? p.frames % a->checkpoint_frames == 0
                                                : now - last_checkpoint >= a->checkpoint;
-            if (status == 0 && s < steps && a->checkpoint >= 0 && (interrupted || due)) {
+            /* read once: a signal that comes later (while the file is written and released)
+               stops the run at the next frame, which then has its checkpoint */
+            int stopping = interrupted != 0;
+            if (status == 0 && s < steps && a->checkpoint >= 0 && (stopping || due)) {
                 if (write_checkpoint(h, sim, &p, now - t0) != 0) status = 2;
                 last_checkpoint = now;
             }
-            if (interrupted && status == 0) {
+            /* readers (h5py, ParaView) can open the file until the next frame */
+            if (status == 0 && stf_h5_release(h) != 0) status = 2;
+            if (stopping && status == 0) {
                 fprintf(stderr, "\nstf: interrupted at t = %.4f s; %s holds the run so far%s\n",
                         sim->time, out,
                         s < steps && a->checkpoint >= 0 ? " (continue it with stf run --resume)" : "");

@@ -1,17 +1,24 @@
 /* h5io.c - the HDF5 output file of a run (H5Part layout + XDMF sidecar) and its reader.
  * See h5io.h for the layout. Every HDF5 id is closed before a function returns, so the
  * file can be closed (or the process killed after a flush) at any point. */
+#define _POSIX_C_SOURCE 200809L /* nanosleep */
+#define _DEFAULT_SOURCE          /* flock */
 #include "h5io.h"
 
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
+#include <time.h>
+#include <unistd.h>
 
 #include <hdf5.h>
 
+#include "body_mesh.h"
 #include "state.h"
 
 #define FRAME_PREFIX "Step#"
@@ -72,13 +79,35 @@ typedef struct frame_info {
     int has_khist, has_id;
 } frame_info;
 
+/* A body row appended while the file is released (stf_h5_release): written at the next
+ * opening, before anything else. */
+typedef struct pending_row {
+    char *name;
+    double v[19]; /* t, pos[3], quat[4], vel[3], angvel[3], force[3] */
+} pending_row;
+
+/* A body with a surface mesh under /body_meshes/NAME (stf_h5_body_mesh). */
+typedef struct mesh_info {
+    char *name;
+    double *v;             /* 3*nv vertices in the body frame */
+    int nv, nt;
+    unsigned char *placed; /* placed[k]: /body_meshes/NAME/Step#k was written */
+    int cap;
+} mesh_info;
+
 struct stf_h5 {
-    hid_t file;
+    hid_t file; /* -1 while released (stf_h5_release) */
     char *path;
     frame_info *frames;
     int nframes, cap;
     int ckpt_removed; /* 1 when a checkpoint was removed and none written since: its space
                          goes at the close (stf_h5_compact) */
+    int readers_stay; /* the last opening found readers holding the file past LOCK_WAIT_MS */
+    double xdmf_at, xdmf_cost; /* when the sidecar was last written (now_s), how long it took */
+    pending_row *pending;
+    int npending, cap_pending;
+    mesh_info *meshes;
+    int nmeshes;
     char err[256];
 };
 
@@ -120,6 +149,113 @@ static hid_t no_eviction_fapl(void)
 
 enum { MDC_REOPEN_BYTES = 2 << 20 }; /* metadata kept in memory before the file is reopened */
 
+/* Sharing the file with readers (stf_h5_release). HDF5 1.10 locks a file for as long as it
+ * is open: exclusively for a writer, shared for a reader (flock), and an opening that finds a
+ * conflicting lock fails at once ("unable to lock file"). A released writer holds nothing, so
+ * readers open the file between frames; while the writer writes (it holds the exclusive lock)
+ * a reader's opening fails and is to be tried again. A reader that keeps the file open
+ * blocks the writer's next opening: the writer waits up to LOCK_WAIT_MS for it to close the
+ * file (a viewer reading a frame does so quickly), then opens the file without locking and
+ * writes anyway, so a reader left open (h5py in a notebook) neither stops nor fails the run.
+ * Such a reader sees the file as it was when it opened it; one that opens it again sees the
+ * new frames. */
+enum { LOCK_WAIT_MS = 250,        /* for readers to let go before writing past them */
+       LOCK_FORCED_WAIT_S = 600 }; /* the same when HDF5_USE_FILE_LOCKING forces locking */
+
+static void sleep_ms(int ms)
+{
+    struct timespec ts = {ms / 1000, (long)(ms % 1000) * 1000000L};
+    nanosleep(&ts, NULL);
+}
+
+/* 1 if another process holds a lock on path (an HDF5 reader that has it open). */
+static int locked_by_other(const char *path)
+{
+    int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC); /* no wait on a fifo */
+    if (fd < 0) return 0;
+    int held = flock(fd, LOCK_EX | LOCK_NB) != 0 && errno == EWOULDBLOCK;
+    close(fd); /* releases the probe's lock if it got one */
+    return held;
+}
+
+static herr_t find_lock_error(unsigned n, const H5E_error2_t *e, void *found)
+{
+    (void)n;
+    if (e->min_num == H5E_CANTLOCKFILE) *(int *)found = 1;
+    return 0;
+}
+
+/* 1 if the HDF5 call that just failed did so because the file was locked. */
+static int failed_on_lock(void)
+{
+    int found = 0;
+    H5Ewalk2(H5E_DEFAULT, H5E_WALK_DOWNWARD, find_lock_error, &found);
+    return found;
+}
+
+/* H5Fopen(path, RDWR) with the no-eviction cache, with or without HDF5's file lock; when it
+ * fails, *on_lock tells whether a lock held by another process was why. */
+static hid_t open_rdwr(const char *path, int locking, int *on_lock)
+{
+    *on_lock = 0;
+    hid_t fapl = no_eviction_fapl();
+    if (fapl >= 0 && !locking && H5Pset_file_locking(fapl, 0, 1) < 0) {
+        close_id(fapl);
+        fapl = -1;
+    }
+    hid_t f = fapl < 0 ? -1 : H5Fopen(path, H5F_ACC_RDWR, fapl);
+    if (f < 0 && fapl >= 0) *on_lock = failed_on_lock(); /* before the next call clears it */
+    close_id(fapl);
+    return f;
+}
+
+/* Opens h->path for writing into h->file, waiting for or writing past readers that hold
+ * it (see above). Returns 0, or -1 with h->err set. */
+static int open_file(stf_h5 *h)
+{
+    int waited = 0, budget = h->readers_stay ? 0 : LOCK_WAIT_MS, unexplained = 0, on_lock;
+    for (;;) {
+        if ((h->file = open_rdwr(h->path, 1, &on_lock)) >= 0) {
+            h->readers_stay = 0;
+            return 0;
+        }
+        if (!on_lock) { /* not a reader's lock: try once more, then give up */
+            if (++unexplained == 2) break;
+            sleep_ms(10);
+            continue;
+        }
+        if (waited < budget) {
+            sleep_ms(10);
+            waited += 10;
+            continue;
+        }
+        if ((h->file = open_rdwr(h->path, 0, &on_lock)) >= 0) {
+            h->readers_stay = 1;
+            return 0;
+        }
+        /* HDF5_USE_FILE_LOCKING=TRUE overrides the property: wait for the readers */
+        const char *env = getenv("HDF5_USE_FILE_LOCKING");
+        int forced = env && strcmp(env, "FALSE") != 0 && strcmp(env, "0") != 0;
+        if (!forced || waited >= budget + 1000 * LOCK_FORCED_WAIT_S) break;
+        sleep_ms(100);
+        waited += 100;
+    }
+    snprintf(h->err, sizeof h->err, "cannot open %s for writing%s", h->path,
+             waited > budget ? " (other processes hold it open)" : "");
+    return -1;
+}
+
+static int write_pending(stf_h5 *h);
+
+/* Opens the file again after stf_h5_release, and writes the body rows kept meanwhile.
+ * Every writing call starts with it. Returns 0 or -1 with h->err set. */
+static int ensure_open(stf_h5 *h)
+{
+    if (h->file >= 0) return 0;
+    if (open_file(h) != 0) return -1;
+    return write_pending(h);
+}
+
 /* Flushes the file; then, when the cache holds more than MDC_REOPEN_BYTES (it never evicts,
  * see no_eviction_fapl), closes and reopens the file to empty it. Returns 0 or -1. */
 static int flush_and_bound(stf_h5 *h)
@@ -129,23 +265,49 @@ static int flush_and_bound(stf_h5 *h)
     int entries = 0;
     if (H5Fget_mdc_size(h->file, &max_size, &min_clean, &cur_size, &entries) < 0) return -1;
     if (cur_size <= MDC_REOPEN_BYTES) return 0;
-    hid_t fapl = no_eviction_fapl();
     H5Fclose(h->file);
     H5garbage_collect(); /* HDF5 keeps freed cache entries on its free lists otherwise */
-    h->file = fapl < 0 ? -1 : H5Fopen(h->path, H5F_ACC_RDWR, fapl);
-    close_id(fapl);
-    return h->file < 0 ? -1 : 0;
+    return open_file(h);
+}
+
+static int write_xdmf(const stf_h5 *h, char *err, size_t errlen);
+
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* The sidecar is rewritten whole (it lists every frame), so at a release only when
+ * XDMF_EVERY_S have passed since the last time and at most 5% of the time goes to it: a
+ * viewer of a running simulation sees frames at most a second or so old. */
+enum { XDMF_EVERY_S = 1 };
+
+int stf_h5_release(stf_h5 *h)
+{
+    if (!h) return -1;
+    if (h->file < 0) return 0;
+    int rc = 0;
+    double t0 = now_s();
+    if (h->xdmf_at == 0 || t0 - h->xdmf_at >= fmax(XDMF_EVERY_S, 20 * h->xdmf_cost)) {
+        rc = write_xdmf(h, h->err, sizeof h->err);
+        h->xdmf_at = now_s();
+        h->xdmf_cost = h->xdmf_at - t0;
+    }
+    if (H5Fclose(h->file) < 0 && rc == 0) {
+        snprintf(h->err, sizeof h->err, "%s: error closing HDF5 file", h->path);
+        rc = -1;
+    }
+    h->file = -1;
+    H5garbage_collect();
+    return rc;
 }
 
 int stf_h5_flush_for_reading(stf_h5 *h)
 {
-    if (!h || H5Fflush(h->file, H5F_SCOPE_GLOBAL) < 0) return -1;
-    H5AC_cache_config_t mdc;
-    hid_t fapl = default_mdc_fapl(&mdc);
-    int rc = fapl >= 0 && H5Fset_mdc_config(h->file, &mdc) >= 0 ? 0 : -1;
-    close_id(fapl);
-    if (rc) snprintf(h->err, sizeof h->err, "cannot reset the metadata cache");
-    return rc;
+    if (!h || ensure_open(h) != 0) return -1;
+    return stf_h5_release(h);
 }
 
 int stf_h5_create(const char *path, stf_h5 **out, char *err, size_t errlen)
@@ -158,6 +320,10 @@ int stf_h5_create(const char *path, stf_h5 **out, char *err, size_t errlen)
         fmt_err(err, errlen, "%s: out of memory", path);
         return -1;
     }
+    h->file = -1;
+    /* An earlier output that a reader holds open is unlinked, not truncated: the reader
+     * keeps its file (and does not stop this one being created). */
+    if (locked_by_other(path)) remove(path);
     /* Probe with stdio first: HDF5's own failure says nothing about why. */
     FILE *probe = fopen(path, "wb");
     if (!probe) {
@@ -213,6 +379,7 @@ static int put_attr_string(hid_t obj, const char *name, const char *value)
     return rc;
 }
 
+/* 1 (and h->err) when name is empty or the file cannot be opened again. */
 static int bad_args(stf_h5 *h, const char *name)
 {
     if (!h) return 1;
@@ -220,7 +387,7 @@ static int bad_args(stf_h5 *h, const char *name)
         snprintf(h->err, sizeof h->err, "empty attribute name");
         return 1;
     }
-    return 0;
+    return ensure_open(h) != 0;
 }
 
 int stf_h5_attr_string(stf_h5 *h, const char *name, const char *value)
@@ -319,6 +486,7 @@ int stf_h5_write_frame(stf_h5 *h, double t, int n, const double *xyz, const doub
         snprintf(h->err, sizeof h->err, "frame %d: bad arguments", h->nframes);
         return -1;
     }
+    if (ensure_open(h) != 0) return -1;
     char gname[32];
     snprintf(gname, sizeof gname, FRAME_PREFIX "%d", h->nframes);
     /* The group is built unnamed and linked into / last, so the root's symbol table
@@ -420,6 +588,67 @@ static int body_rows(hid_t body, int created, const double *const rows[BODY_SERI
     return 0;
 }
 
+/* Appends one row to /bodies/NAME without flushing. */
+static int put_body_row(stf_h5 *h, const char *name, const double *const rows[BODY_SERIES])
+{
+    int created = 0;
+    hid_t bodies = open_or_create_group(h->file, "bodies", NULL);
+    hid_t body = bodies < 0 ? -1 : open_or_create_group(bodies, name, &created);
+    int rc = body >= 0 ? body_rows(body, created, rows) : -1;
+    close_id(body);
+    close_id(bodies);
+    if (rc != 0) snprintf(h->err, sizeof h->err, "cannot append to /bodies/%s", name);
+    return rc;
+}
+
+/* Where each series starts in a pending_row's values. */
+static const int row_at[BODY_SERIES] = {0, 1, 4, 8, 11, 14};
+
+static void unpack_row(const pending_row *p, const double *rows[BODY_SERIES])
+{
+    for (int s = 0; s < BODY_SERIES; s++) rows[s] = p->v + row_at[s];
+}
+
+static void free_pending(stf_h5 *h)
+{
+    for (int i = 0; i < h->npending; i++) free(h->pending[i].name);
+    h->npending = 0;
+}
+
+static int write_pending(stf_h5 *h)
+{
+    int rc = 0;
+    for (int i = 0; i < h->npending && rc == 0; i++) {
+        const double *rows[BODY_SERIES];
+        unpack_row(&h->pending[i], rows);
+        rc = put_body_row(h, h->pending[i].name, rows);
+    }
+    if (h->npending && rc == 0 && flush_and_bound(h) < 0) {
+        snprintf(h->err, sizeof h->err, "cannot write the body rows");
+        rc = -1;
+    }
+    free_pending(h);
+    return rc;
+}
+
+/* Keeps a row for the next opening (the file is released). */
+static int keep_row(stf_h5 *h, const char *name, const double *const rows[BODY_SERIES])
+{
+    if (h->npending == h->cap_pending) {
+        int cap = h->cap_pending ? 2 * h->cap_pending : 64;
+        pending_row *p = realloc(h->pending, (size_t)cap * sizeof *p);
+        if (!p) return -1;
+        h->pending = p;
+        h->cap_pending = cap;
+    }
+    pending_row *p = &h->pending[h->npending];
+    for (int s = 0; s < BODY_SERIES; s++)
+        memcpy(p->v + row_at[s], rows[s], sizeof(double) * (size_t)(body_cols[s] ? body_cols[s] : 1));
+    if (!(p->name = dup_str(name))) return -1;
+    h->npending++;
+    return 0;
+}
+
 int stf_h5_body_append(stf_h5 *h, const char *name, double t, const double pos[3],
                        const double quat[4], const double vel[3], const double angvel[3],
                        const double force[3])
@@ -430,26 +659,154 @@ int stf_h5_body_append(stf_h5 *h, const char *name, double t, const double pos[3
         return -1;
     }
     const double *const rows[BODY_SERIES] = {&t, pos, quat, vel, angvel, force};
-    int created = 0;
-    hid_t bodies = open_or_create_group(h->file, "bodies", NULL);
-    hid_t body = bodies < 0 ? -1 : open_or_create_group(bodies, name, &created);
-    int rc = body >= 0 ? body_rows(body, created, rows) : -1;
-    close_id(body);
-    close_id(bodies);
-    if (rc == 0 && flush_and_bound(h) < 0) rc = -1;
-    if (rc != 0) snprintf(h->err, sizeof h->err, "cannot append to /bodies/%s", name);
+    if (h->file < 0) {
+        if (keep_row(h, name, rows) == 0) return 0;
+        snprintf(h->err, sizeof h->err, "out of memory");
+        return -1;
+    }
+    int rc = put_body_row(h, name, rows);
+    if (rc == 0 && flush_and_bound(h) < 0) {
+        snprintf(h->err, sizeof h->err, "cannot append to /bodies/%s", name);
+        rc = -1;
+    }
     return rc;
 }
 
 int stf_h5_write_metrics_json(stf_h5 *h, const char *json)
 {
-    if (!h) return -1;
+    if (!h || ensure_open(h) != 0) return -1;
     hid_t g = open_or_create_group(h->file, "metrics", NULL);
     int rc = g >= 0 ? put_attr_string(g, "json", json ? json : "") : -1;
     close_id(g);
     if (rc == 0 && H5Fflush(h->file, H5F_SCOPE_GLOBAL) < 0) rc = -1;
     if (rc != 0) snprintf(h->err, sizeof h->err, "cannot write /metrics");
     return rc;
+}
+
+/* ---- body meshes ---- */
+
+#define MESH_GROUP "body_meshes"
+
+static mesh_info *find_mesh(const stf_h5 *h, const char *name)
+{
+    for (int i = 0; i < h->nmeshes; i++)
+        if (!strcmp(h->meshes[i].name, name)) return &h->meshes[i];
+    return NULL;
+}
+
+/* Registers a mesh (v: 3*nv doubles, owned by the entry from here on). */
+static mesh_info *add_mesh(stf_h5 *h, const char *name, double *v, int nv, int nt)
+{
+    mesh_info *m = realloc(h->meshes, (size_t)(h->nmeshes + 1) * sizeof *m);
+    char *n = dup_str(name);
+    if (!m || !n) {
+        if (m) h->meshes = m;
+        free(n);
+        free(v);
+        return NULL;
+    }
+    h->meshes = m;
+    m = &h->meshes[h->nmeshes++];
+    *m = (mesh_info){n, v, nv, nt, NULL, 0};
+    return m;
+}
+
+/* Marks frame k as placed. */
+static int mark_placed(mesh_info *m, int k)
+{
+    if (k >= m->cap) {
+        int cap = m->cap ? 2 * m->cap : 64;
+        while (cap <= k) cap *= 2;
+        unsigned char *p = realloc(m->placed, (size_t)cap);
+        if (!p) return -1;
+        memset(p + m->cap, 0, (size_t)(cap - m->cap));
+        m->placed = p;
+        m->cap = cap;
+    }
+    m->placed[k] = 1;
+    return 0;
+}
+
+/* Writes a contiguous 2-D dataset of rows x cols as name in g. As for frames, it is written
+ * unlinked and flushed before the link (stf_h5_write_frame): a kill leaves no half dataset. */
+static int write_2d(hid_t g, const char *name, hid_t ftype, hid_t mtype, int rows, int cols,
+                    const void *buf)
+{
+    hsize_t dims[2] = {(hsize_t)rows, (hsize_t)cols};
+    hid_t space = H5Screate_simple(2, dims, NULL);
+    hid_t d = space < 0 ? -1 : H5Dcreate_anon(g, ftype, space, H5P_DEFAULT, H5P_DEFAULT);
+    int rc = d >= 0 && H5Dwrite(d, mtype, H5S_ALL, H5S_ALL, H5P_DEFAULT, buf) >= 0 &&
+                     H5Fflush(g, H5F_SCOPE_GLOBAL) >= 0 &&
+                     H5Olink(d, g, name, H5P_DEFAULT, H5P_DEFAULT) >= 0
+                 ? 0 : -1;
+    close_id(d);
+    close_id(space);
+    return rc;
+}
+
+int stf_h5_body_mesh(stf_h5 *h, const char *name, const struct stf_collider_def *shape)
+{
+    if (!h) return -1;
+    if (!name || !*name || strchr(name, '/') || !strcmp(name, ".") || find_mesh(h, name)) {
+        snprintf(h->err, sizeof h->err, "bad or repeated body name \"%s\"", name ? name : "(null)");
+        return -1;
+    }
+    stf_mesh mesh;
+    int built = stf_mesh_build(shape, &mesh);
+    if (built != 0) {
+        if (built < 0) snprintf(h->err, sizeof h->err, "out of memory");
+        return built;
+    }
+    if (ensure_open(h) != 0) {
+        stf_mesh_free(&mesh);
+        return -1;
+    }
+    hid_t all = open_or_create_group(h->file, MESH_GROUP, NULL);
+    hid_t g = all < 0 ? -1 : H5Gcreate2(all, name, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    int rc = g >= 0 &&
+                     write_2d(g, "vertices", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, mesh.nv, 3, mesh.v) == 0 &&
+                     write_2d(g, "triangles", H5T_STD_I32LE, H5T_NATIVE_INT32, mesh.nt, 3, mesh.t) == 0 &&
+                     flush_and_bound(h) == 0
+                 ? 0 : -1;
+    close_id(g);
+    close_id(all);
+    free(mesh.t);
+    if (rc == 0 && !add_mesh(h, name, mesh.v, mesh.nv, mesh.nt)) rc = -1;
+    else if (rc != 0) free(mesh.v);
+    if (rc != 0) snprintf(h->err, sizeof h->err, "cannot write /" MESH_GROUP "/%s", name);
+    return rc;
+}
+
+int stf_h5_body_pose(stf_h5 *h, const char *name, const double pos[3], const double quat[4])
+{
+    if (!h || !name) return -1;
+    mesh_info *m = find_mesh(h, name);
+    if (!m || h->nframes < 1) return 0; /* no mesh (or no frame) to place */
+    if (ensure_open(h) != 0) return -1;
+    int k = h->nframes - 1;
+    char path[300];
+    snprintf(path, sizeof path, MESH_GROUP "/%s/" FRAME_PREFIX "%d", name, k);
+    float *w = malloc(sizeof *w * 3 * (size_t)m->nv);
+    stf_mesh placed = {m->v, m->nv, NULL, 0};
+    if (w) stf_mesh_place(&placed, pos, quat, w);
+    int rc = w && write_2d(h->file, path, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, m->nv, 3, w) == 0 &&
+                     flush_and_bound(h) == 0 && mark_placed(m, k) == 0
+                 ? 0 : -1;
+    free(w);
+    if (rc != 0) snprintf(h->err, sizeof h->err, "cannot write /%.200s", path);
+    return rc;
+}
+
+static void free_meshes(stf_h5 *h)
+{
+    for (int i = 0; i < h->nmeshes; i++) {
+        free(h->meshes[i].name);
+        free(h->meshes[i].v);
+        free(h->meshes[i].placed);
+    }
+    free(h->meshes);
+    h->meshes = NULL;
+    h->nmeshes = 0;
 }
 
 /* ---- XDMF sidecar ---- */
@@ -499,6 +856,7 @@ static void xdmf_attribute(FILE *f, const char *h5name, int frame, const char *d
 
 static const char f32[] = "NumberType=\"Float\" Precision=\"4\"";
 static const char i32[] = "NumberType=\"Int\" Precision=\"4\"";
+static const char f64[] = "NumberType=\"Float\" Precision=\"8\"";
 
 static void xdmf_grid(FILE *f, const char *h5name, int i, const frame_info *fr)
 {
@@ -520,16 +878,61 @@ static void xdmf_grid(FILE *f, const char *h5name, int i, const frame_info *fr)
     fputs("      </Grid>\n", f);
 }
 
+/* The temporal collection of body m: its mesh at each frame placed (stf_h5_body_pose). */
+static void xdmf_body(FILE *f, const char *h5name, const stf_h5 *h, const mesh_info *m)
+{
+    int any = 0;
+    for (int k = 0; k < h->nframes && k < m->cap && !any; k++) any = m->placed[k];
+    if (!any) return;
+    fputs("    <Grid Name=\"", f);
+    xml_escaped(f, m->name);
+    fputs("\" GridType=\"Collection\" CollectionType=\"Temporal\">\n", f);
+    for (int k = 0; k < h->nframes && k < m->cap; k++) {
+        if (!m->placed[k]) continue;
+        fprintf(f, "      <Grid Name=\"" FRAME_PREFIX "%d\" GridType=\"Uniform\">\n", k);
+        fprintf(f, "        <Time Value=\"%.17g\"/>\n", h->frames[k].t);
+        fprintf(f, "        <Topology TopologyType=\"Triangle\" NumberOfElements=\"%d\">\n", m->nt);
+        fprintf(f, "          <DataItem Dimensions=\"%d 3\" %s Format=\"HDF\">", m->nt, i32);
+        xml_escaped(f, h5name);
+        fputs(":/" MESH_GROUP "/", f);
+        xml_escaped(f, m->name);
+        fputs("/triangles</DataItem>\n        </Topology>\n", f);
+        fputs("        <Geometry GeometryType=\"XYZ\">\n", f);
+        fprintf(f, "          <DataItem Dimensions=\"%d 3\" %s Format=\"HDF\">", m->nv, f32);
+        xml_escaped(f, h5name);
+        fputs(":/" MESH_GROUP "/", f);
+        xml_escaped(f, m->name);
+        fprintf(f, "/" FRAME_PREFIX "%d</DataItem>\n        </Geometry>\n", k);
+        /* the vertices in the body frame: colouring by them shows the body turn */
+        fputs("        <Attribute Name=\"body_frame_position\" AttributeType=\"Vector\" "
+              "Center=\"Node\">\n", f);
+        fprintf(f, "          <DataItem Dimensions=\"%d 3\" %s Format=\"HDF\">", m->nv, f64);
+        xml_escaped(f, h5name);
+        fputs(":/" MESH_GROUP "/", f);
+        xml_escaped(f, m->name);
+        fputs("/vertices</DataItem>\n        </Attribute>\n      </Grid>\n", f);
+    }
+    fputs("    </Grid>\n", f);
+}
+
+/* Writes the sidecar for the frames so far: into PATH.xmf.part, renamed over PATH.xmf, so
+ * that a viewer reading it while the run goes never sees half a file. */
 static int write_xdmf(const stf_h5 *h, char *err, size_t errlen)
 {
     char *xpath = sidecar_path(h->path);
-    if (!xpath) {
+    size_t len = xpath ? strlen(xpath) : 0;
+    char *tmp = xpath ? malloc(len + 6) : NULL;
+    if (!tmp) {
         fmt_err(err, errlen, "%s: out of memory", h->path);
+        free(xpath);
         return -1;
     }
-    FILE *f = fopen(xpath, "w");
+    memcpy(tmp, xpath, len);
+    memcpy(tmp + len, ".part", 6);
+    FILE *f = fopen(tmp, "w");
     if (!f) {
-        fmt_err(err, errlen, "%s: %s", xpath, strerror(errno));
+        fmt_err(err, errlen, "%s: %s", tmp, strerror(errno));
+        free(tmp);
         free(xpath);
         return -1;
     }
@@ -541,19 +944,27 @@ static int write_xdmf(const stf_h5 *h, char *err, size_t errlen)
           "    <Grid Name=\"particles\" GridType=\"Collection\" CollectionType=\"Temporal\">\n",
           f);
     for (int i = 0; i < h->nframes; i++) xdmf_grid(f, h5name, i, &h->frames[i]);
-    fputs("    </Grid>\n  </Domain>\n</Xdmf>\n", f);
+    fputs("    </Grid>\n", f);
+    for (int b = 0; b < h->nmeshes; b++) xdmf_body(f, h5name, h, &h->meshes[b]);
+    fputs("  </Domain>\n</Xdmf>\n", f);
     int bad = ferror(f);
-    if (fclose(f) != 0 || bad) {
+    if (fclose(f) != 0 || bad || rename(tmp, xpath) != 0) {
         fmt_err(err, errlen, "%s: write error", xpath);
+        remove(tmp);
+        free(tmp);
         free(xpath);
         return -1;
     }
+    free(tmp);
     free(xpath);
     return 0;
 }
 
 static void free_writer(stf_h5 *h)
 {
+    free_pending(h);
+    free(h->pending);
+    free_meshes(h);
     free(h->frames);
     free(h->path);
     free(h);
@@ -624,8 +1035,13 @@ int stf_h5_compact(const char *path, char *err, size_t errlen)
 int stf_h5_close(stf_h5 *h, char *err, size_t errlen)
 {
     if (!h) return 0;
-    int rc = write_xdmf(h, err, errlen);
-    if (H5Fclose(h->file) < 0 && rc == 0) {
+    int rc = 0;
+    if (h->npending && ensure_open(h) != 0) { /* body rows kept since the release */
+        fmt_err(err, errlen, "%s", h->err);
+        rc = -1;
+    }
+    if (rc == 0 && write_xdmf(h, err, errlen) != 0) rc = -1;
+    if (h->file >= 0 && H5Fclose(h->file) < 0 && rc == 0) {
         fmt_err(err, errlen, "%s: error closing HDF5 file", h->path);
         rc = -1;
     }
@@ -638,7 +1054,7 @@ int stf_h5_close(stf_h5 *h, char *err, size_t errlen)
 void stf_h5_abort(stf_h5 *h)
 {
     if (!h) return;
-    H5Fclose(h->file);
+    if (h->file >= 0) H5Fclose(h->file);
     free_writer(h);
 }
 
@@ -1141,7 +1557,7 @@ static int unlink_if_there(hid_t file, const char *name)
 
 int stf_h5_write_checkpoint(stf_h5 *h, const stf_state *st)
 {
-    if (!h) return -1;
+    if (!h || ensure_open(h) != 0) return -1;
     hid_t g = st->failed ? -1 : H5Gcreate_anon(h->file, H5P_DEFAULT, H5P_DEFAULT);
     int rc = g >= 0 ? 0 : -1;
     for (int k = 0; k < st->n && rc == 0; k++) rc = write_entry(g, &st->e[k]);
@@ -1164,7 +1580,7 @@ int stf_h5_write_checkpoint(stf_h5 *h, const stf_state *st)
 
 int stf_h5_delete_checkpoint(stf_h5 *h)
 {
-    if (!h) return -1;
+    if (!h || ensure_open(h) != 0) return -1;
     /* this run's checkpoint or an earlier run's (a resumed file): its space goes at the close */
     int there = H5Lexists(h->file, CKPT_NAME, H5P_DEFAULT) > 0 || H5Lexists(h->file, CKPT_NEW, H5P_DEFAULT) > 0;
     if (unlink_if_there(h->file, CKPT_NEW) == 0 && unlink_if_there(h->file, CKPT_NAME) == 0 &&
@@ -1265,6 +1681,56 @@ static int truncate_bodies(hid_t file, long rows)
     return rc;
 }
 
+/* Reads /body_meshes/NAME/vertices and the triangles' count into a new entry of h; marks
+ * the frames below `frames` that have the mesh placed and removes the later ones. */
+static int keep_mesh(stf_h5 *h, hid_t all, const char *name, int frames)
+{
+    hid_t g = H5Gopen2(all, name, H5P_DEFAULT);
+    hid_t d = g < 0 ? -1 : H5Dopen2(g, "vertices", H5P_DEFAULT);
+    hid_t s = d < 0 ? -1 : H5Dget_space(d);
+    hid_t td = g < 0 ? -1 : H5Dopen2(g, "triangles", H5P_DEFAULT);
+    hid_t ts = td < 0 ? -1 : H5Dget_space(td);
+    hsize_t vd[2] = {0, 0}, tdims[2] = {0, 0};
+    double *v = NULL;
+    int rc = s >= 0 && ts >= 0 && H5Sget_simple_extent_dims(s, vd, NULL) == 2 && vd[1] == 3 &&
+                     H5Sget_simple_extent_dims(ts, tdims, NULL) == 2 && tdims[1] == 3 &&
+                     vd[0] > 0 && vd[0] < (1u << 24) && tdims[0] < (1u << 24)
+                 ? 0 : -1;
+    if (rc == 0 && (!(v = malloc(sizeof *v * 3 * (size_t)vd[0])) ||
+                    H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v) < 0))
+        rc = -1;
+    close_id(ts);
+    close_id(td);
+    close_id(s);
+    close_id(d);
+    mesh_info *m = NULL;
+    if (rc == 0 && !(m = add_mesh(h, name, v, (int)vd[0], (int)tdims[0]))) rc = -1;
+    if (rc != 0 && !m) free(v);
+    name_list l = {0};
+    if (rc == 0 && list_names(g, &l) != 0) rc = -1;
+    for (int i = 0; i < l.count && rc == 0; i++) {
+        long k = frame_step(l.names[i]);
+        if (k < 0) continue;
+        if (k >= frames) rc = H5Ldelete(g, l.names[i], H5P_DEFAULT) < 0 ? -1 : 0;
+        else rc = mark_placed(m, (int)k);
+    }
+    free_names(l.names, l.count);
+    close_id(g);
+    return rc;
+}
+
+static int keep_meshes(stf_h5 *h, int frames)
+{
+    if (H5Lexists(h->file, MESH_GROUP, H5P_DEFAULT) <= 0) return 0; /* none, or an older file */
+    hid_t all = H5Gopen2(h->file, MESH_GROUP, H5P_DEFAULT);
+    name_list l = {0};
+    int rc = all >= 0 && list_names(all, &l) == 0 ? 0 : -1;
+    for (int i = 0; i < l.count && rc == 0; i++) rc = keep_mesh(h, all, l.names[i], frames);
+    free_names(l.names, l.count);
+    close_id(all);
+    return rc;
+}
+
 /* Checks that frames 0..frames-1 are complete and remembers them (for the sidecar). On
  * success drop holds the root's names with those of the later frames first (drop->count of
  * them; free with free_names(drop->names, drop->cap)). */
@@ -1317,10 +1783,7 @@ int stf_h5_open_resume(const char *path, int frames, long body_rows, stf_h5 **ou
         fmt_err(err, errlen, "%s: out of memory", path);
         return -1;
     }
-    hid_t fapl = no_eviction_fapl();
-    h->file = fapl < 0 ? -1 : H5Fopen(path, H5F_ACC_RDWR, fapl);
-    close_id(fapl);
-    if (h->file < 0) {
+    if (open_file(h) != 0) {
         fmt_err(err, errlen, "%s: cannot open the HDF5 file for writing", path);
         free_writer(h);
         return -1;
@@ -1337,6 +1800,7 @@ int stf_h5_open_resume(const char *path, int frames, long body_rows, stf_h5 **ou
         rc = H5Ldelete(h->file, drop.names[i], H5P_DEFAULT) < 0 ? -1 : 0;
     free_names(drop.names, drop.cap);
     if (rc == 0) rc = truncate_bodies(h->file, body_rows);
+    if (rc == 0) rc = keep_meshes(h, frames);
     if (rc == 0 && (H5Aexists(h->file, "exit_status") > 0 &&
                     H5Adelete(h->file, "exit_status") < 0))
         rc = -1;

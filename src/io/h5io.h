@@ -10,10 +10,21 @@
  *                         over the step before the row)
  *   /metrics              string attribute "json"
  *   /checkpoint           while a run goes: its state for `stf run --resume` (see below)
- * plus an XDMF sidecar OUT.xmf next to OUT.h5 (written by stf_h5_close) for ParaView.
+ *   /body_meshes/NAME     for viewers, a body's surface (stf_h5_body_mesh): vertices
+ *                         float64[V][3] in the body frame, triangles int32[T][3]
+ *                         (counter-clockwise seen from outside), and Step#N float32[V][3],
+ *                         the vertices in world coordinates at frame N
+ * plus an XDMF sidecar OUT.xmf next to OUT.h5 for ParaView: a temporal collection of the
+ * frames' particles ("particles", Polyvertex) and one per body with a mesh (its name,
+ * Triangle), rewritten at every stf_h5_release and at stf_h5_close.
  *
  * The file is flushed after every frame and body row, so a killed run leaves a file that
  * stf_h5r_open can read up to the last complete frame.
+ *
+ * Readers while a run goes: the writer that calls stf_h5_release after each frame keeps the
+ * file closed between frames, so other processes (h5py, ParaView) open it and see the
+ * frames written so far. A reader that holds the file open while the writer wants to write
+ * does not stop it: the writer waits a moment for it, then writes anyway (see h5io.c).
  */
 #ifndef STF_H5IO_H
 #define STF_H5IO_H
@@ -52,9 +63,23 @@ int stf_h5_body_append(stf_h5 *h, const char *name, double t, const double pos[3
                        const double quat[4], const double vel[3], const double angvel[3],
                        const double force[3]);
 
-/* Flushes, and lets HDF5 evict metadata again (writes keep it from doing so, see h5io.c),
- * so that reading the file in this process (stf_h5r_open, which shares the writer's cache)
- * stays bounded in memory. Call after the last frame. Returns 0 or -1. */
+/* Writes /body_meshes/NAME/vertices and triangles: the surface of shape (a sphere, box,
+ * capsule, cylinder or convex hull: body_mesh.h) in the body frame. Returns 0; 1 for a shape
+ * without a surface (nothing written); -1. Call once per body, before its poses. */
+struct stf_collider_def;
+int stf_h5_body_mesh(stf_h5 *h, const char *name, const struct stf_collider_def *shape);
+
+/* Writes /body_meshes/NAME/Step#N for the last frame N written: the body's mesh placed at
+ * pos with orientation quat (w x y z). Returns 0 (also for a body without a mesh) or -1. */
+int stf_h5_body_pose(stf_h5 *h, const char *name, const double pos[3], const double quat[4]);
+
+/* Writes the XDMF sidecar for the frames so far and closes the file, so that other
+ * processes can open it until the next call that writes, which opens it again: body rows
+ * appended meanwhile are kept in memory and written then. Returns 0 or -1. */
+int stf_h5_release(stf_h5 *h);
+
+/* Writes what is pending and releases the file (stf_h5_release), so that reading the file
+ * in this process (stf_h5r_open) sees everything. Call after the last frame. 0 or -1. */
 int stf_h5_flush_for_reading(stf_h5 *h);
 
 /* Writes group /metrics with string attribute "json" (replaced if called again). */
@@ -67,7 +92,8 @@ const char *stf_h5_last_error(const stf_h5 *h);
  * frees h. Returns 0, or -1 with err (h is freed either way). */
 int stf_h5_close(stf_h5 *h, char *err, size_t errlen);
 
-/* Closes the file without a sidecar and frees h (error paths). NULL is a no-op. */
+/* Closes the file without a sidecar and frees h (error paths; body rows kept since a
+ * release are lost). NULL is a no-op. */
 void stf_h5_abort(stf_h5 *h);
 
 /* ---- checkpoints (`stf run --resume`, see state.h) ----
