@@ -63,7 +63,7 @@
  *   quarter-space behind each edge subtracted once (the triple corner's octant is then
  *   missing once: at least 0.87 h from a particle, a small term).
  */
-#include "cy.h"
+#include "cy_internal.h"
 #include "state.h"
 
 #include <math.h>
@@ -73,69 +73,6 @@
 #include <string.h>
 
 #define PI 3.14159265358979323846
-
-/* A neighbour pair: j and grad W_ij (1/m^4, float: the pair arrays are streamed on every
- * pass, so their size is the cost). */
-typedef struct cy_pair {
-    int32_t j;
-    float g[3];
-} cy_pair;
-
-typedef struct cy_state {
-    int cap;             /* particles the arrays hold */
-    double rho0;         /* rest density, kg/m^3 */
-    double wall_rho[WALL_BINS + 1];  /* wall density by distance, kg/m^3 */
-    double wall_grad[WALL_BINS + 1]; /* |sum_b m grad W_ib| by distance, kg/m^4 */
-    double *rho, *S, *kappa, *ktot, *rhostar; /* n each */
-    double *gw;          /* 3n: sum over walls of m grad W (points into the walls) */
-    double *qw;          /* n: sum over walls of v_wall . (m grad W) */
-    double *wv;          /* 9n: sum over walls of v_wall (x) m grad W (row-major) */
-    double *nu;          /* n: kinematic viscosity of the step, m^2/s */
-    double *b, *dv, *r, *p, *Ap; /* 3n each: viscosity solve */
-    float *lap;          /* per pair (as pair): m (r.grad W)/(r^2 + 0.01 h^2), kg/m^5; the
-                            central form: (d + 2) m / (S (r^2 + 0.01 h^2)), S = (dW/dr) / r,
-                            so that it times g g^T (g = grad W = S r) is (d + 2) m S r r^T /
-                            (r^2 + 0.01 h^2) (0 where S = 0) */
-    double wall_lap[WALL_BINS + 1]; /* the same summed over a wall's lattice, with Morris'
-                                       mirror velocity (see tables), by distance */
-    /* The quarter-space behind two perpendicular faces of a container, by the distances to
-       the two faces (d1, d2): counted by both faces' half-spaces, so subtracted once */
-    double quad_rho[WALL_BINS + 1][WALL_BINS + 1];
-    double quad_g1[WALL_BINS + 1][WALL_BINS + 1]; /* gradient sum along face 1's normal */
-    double quad_g2[WALL_BINS + 1][WALL_BINS + 1];
-    double quad_lap[WALL_BINS + 1][WALL_BINS + 1];
-    double *lw;          /* n: sum over walls of wall_lap */
-    double *lwv;         /* 3n: sum over walls of wall_lap * v_wall (central: of M_w v_wall) */
-    /* The central form (viscosity_form central): a wall's lattice gives the 3 x 3 block
-       M_w = sum_b (d + 2) m F_ib (1 + mirror ratio) x_ib x_ib^T / |x_ib|^2, F = (r.grad W)/
-       (r^2 + 0.01 h^2): for a half-space, wall_cn n n^T + wall_ct (I - n n^T) by distance;
-       for a container's quarter-space, in the frame of the two normals and the edge */
-    double wall_cn[WALL_BINS + 1], wall_ct[WALL_BINS + 1];
-    double quad_c11[WALL_BINS + 1][WALL_BINS + 1], quad_c22[WALL_BINS + 1][WALL_BINS + 1];
-    double quad_c12[WALL_BINS + 1][WALL_BINS + 1], quad_cee[WALL_BINS + 1][WALL_BINS + 1];
-    double *lwm;         /* 9n (central): sum over walls of M_w, row-major */
-    cy_pair *pair;       /* off[n]: each particle's neighbours within h, compact (CSR) */
-    int32_t *off;        /* n + 1: particle i's pairs are pair[off[i] .. off[i + 1]) */
-    size_t pair_cap;
-    double *kr;          /* n: kappa_i / rho_i of the current iteration, m^5/(kg s^2) */
-    double *irho;        /* n: 1 / rho_i */
-    double *mu;          /* n: rho_i nu_i, dynamic viscosity, Pa s */
-    /* The neighbour search of a non-periodic fluid (cy_neighbours): a dense grid of cells
-       (h across, h / XCELLS along x) over the particles' bounding box, the particles
-       counting-sorted into it */
-    int32_t *cstart;     /* ncell + 1: first sorted entry of each cell */
-    size_t cell_cap;
-    int32_t *cellof;     /* n: cell of each particle */
-    int32_t *sid;        /* n: particle of each sorted entry */
-    double *sx;          /* 3n: the sorted entries' positions, x then y then z (3 arrays) */
-    int32_t *nbt;        /* n * nbs: neighbours within h, in cell order */
-    int32_t *nbc;        /* n: how many */
-    int nbs;             /* stride of nbt */
-    int dense;           /* 1: this substep's lists are nbt/nbc, 0: the shared grid's */
-    char *hit;
-    int warm_n;          /* particles ktot holds the last step's totals of (0: none) */
-    stf_solver_stats stats;
-} cy_state;
 
 /* ------------------------------------------------------------------ kernel (cubic spline) */
 
@@ -356,52 +293,6 @@ void cy_free(stf_fluid *f)
     f->cy = NULL;
 }
 
-static int grow(double **p, size_t count)
-{
-    double *q = realloc(*p, (count ? count : 1) * sizeof *q);
-    if (!q) return -1;
-    *p = q;
-    return 0;
-}
-
-static int grow_i32(int32_t **p, size_t count)
-{
-    int32_t *q = realloc(*p, (count ? count : 1) * sizeof *q);
-    if (!q) return -1;
-    *p = q;
-    return 0;
-}
-
-/* Room for the pair arrays of `pairs` pairs. 0 / -1. */
-static int reserve_pairs(cy_state *c, size_t pairs)
-{
-    if (pairs <= c->pair_cap) return 0;
-    pairs += pairs / 4 + 64;
-    cy_pair *q = realloc(c->pair, pairs * sizeof *q);
-    if (!q) return -1;
-    c->pair = q;
-    float *l = realloc(c->lap, pairs * sizeof *l);
-    if (!l) return -1;
-    c->lap = l;
-    c->pair_cap = pairs;
-    return 0;
-}
-
-/* Compact offsets of the grid's neighbour lists (serial: a prefix sum) and room for them. */
-static int pair_offsets(stf_fluid *f)
-{
-    cy_state *c = f->cy;
-    size_t total = 0;
-    const int32_t *count = c->dense ? c->nbc : f->grid.count;
-    for (int i = 0; i < f->n; i++) {
-        c->off[i] = (int32_t)total;
-        total += (size_t)count[i];
-    }
-    if (total > INT32_MAX) return -1;
-    c->off[f->n] = (int32_t)total;
-    return reserve_pairs(c, total);
-}
-
 static int reserve(stf_fluid *f, int n)
 {
     cy_state *c = f->cy;
@@ -538,135 +429,6 @@ static void walls_one(stf_fluid *f, int i)
     c->rho[i] = rho; /* the fluid's part is added in density_one */
     c->qw[i] = q;
     c->lw[i] = lw;
-}
-
-/* ------------------------------------------------------------------ neighbour search */
-
-/* Every particle's neighbours within h (r < h), for a fluid that is not periodic: the
- * particles are counting-sorted into a dense grid of cells over their bounding box, h across
- * (y, z) and h / XCELLS along x, with a sorted copy of their positions. Around a particle,
- * the 3 x 3 rows (along x) are visited, each over the cells within the sphere's chord at the
- * row's distance from the particle: one contiguous run of the sorted copy (no hashing, no
- * indirection, the distance tests stream). At the dam break that is 100 candidates per
- * particle against 216 in 27 cells of size h (and 5% less time, A/B); cells of h/2 in all
- * three directions (25 rows) cost more: such a cell holds about one particle at h = 2
- * spacings. The lists are rebuilt every substep (at the dam break's speeds the Verlet lists
- * of the shared grid were rebuilt at 97% of the substeps anyway). The list order (row by
- * row, cell by cell, particle index within a cell) depends on the positions only: the same
- * for any thread count. Returns 1 (c->nbt, c->nbc hold the lists), 0 when the box has too
- * many cells for the particles (far-flung particles: the shared hashed grid is used
- * instead), -1 out of memory. */
-#define XCELLS 4
-static int cy_neighbours(stf_fluid *f)
-{
-    cy_state *c = f->cy;
-    int n = f->n;
-    double h = f->h, h2 = h * h, reach2 = h2 * (1 + 1e-9); /* pruning a hair wider */
-    double inv[3] = {XCELLS / h, 1.0 / h, 1.0 / h}; /* cells of h/XCELLS along x, h across */
-    double lo0 = INFINITY, lo1 = INFINITY, lo2 = INFINITY;
-    double hi0 = -INFINITY, hi1 = -INFINITY, hi2 = -INFINITY;
-    const double *x = f->x;
-#pragma omp parallel for schedule(static) reduction(min : lo0, lo1, lo2)                           \
-    reduction(max : hi0, hi1, hi2)
-    for (int i = 0; i < n; i++) {
-        const double *p = x + 3 * i; /* positions are finite (fluid_check) */
-        lo0 = p[0] < lo0 ? p[0] : lo0, hi0 = p[0] > hi0 ? p[0] : hi0;
-        lo1 = p[1] < lo1 ? p[1] : lo1, hi1 = p[1] > hi1 ? p[1] : hi1;
-        lo2 = p[2] < lo2 ? p[2] : lo2, hi2 = p[2] > hi2 ? p[2] : hi2;
-    }
-    if (n == 0) return 0;
-    double lo[3] = {lo0, lo1, lo2}, span[3] = {hi0 - lo0, hi1 - lo1, hi2 - lo2};
-    int dim[3];
-    double cells = 1;
-    /* at most 16 cells per particle (+ 65536): a few spray particles far out make the box
-       large, and then the cells along x are coarsened (to h/2, then h) before giving up */
-    for (;;) {
-        cells = 1;
-        for (int a = 0; a < 3; a++) {
-            if (!(span[a] * inv[a] < 1e6)) return 0;
-            dim[a] = (int)floor(span[a] * inv[a]) + 1;
-            cells *= dim[a];
-        }
-        if (cells <= 16.0 * n + 65536) break;
-        if (inv[0] * h < 1.5) return 0;
-        inv[0] *= 0.5;
-    }
-    size_t ncell = (size_t)cells;
-    if (ncell + 1 > c->cell_cap) {
-        int32_t *cb = realloc(c->cstart, (ncell + 1) * sizeof *cb);
-        if (!cb) return -1;
-        c->cstart = cb;
-        c->cell_cap = ncell + 1;
-    }
-    int32_t *cst = c->cstart, *cellof = c->cellof, *sid = c->sid;
-#pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) {
-        int k[3];
-        for (int a = 0; a < 3; a++) {
-            int u = (int)((x[3 * i + a] - lo[a]) * inv[a]);
-            k[a] = u < 0 ? 0 : u >= dim[a] ? dim[a] - 1 : u;
-        }
-        cellof[i] = (k[2] * dim[1] + k[1]) * dim[0] + k[0];
-    }
-    /* counting sort (serial: stable, and short next to the search) */
-    memset(cst, 0, (ncell + 1) * sizeof *cst);
-    for (int i = 0; i < n; i++) cst[cellof[i] + 1]++;
-    for (size_t b = 0; b < ncell; b++) cst[b + 1] += cst[b];
-    for (int i = 0; i < n; i++) sid[cst[cellof[i]]++] = i;
-    for (size_t b = ncell; b > 0; b--) cst[b] = cst[b - 1];
-    cst[0] = 0;
-    double *sx = c->sx, *sy = sx + n, *sz = sy + n;
-#pragma omp parallel for schedule(static)
-    for (int k = 0; k < n; k++) {
-        int i = sid[k];
-        sx[k] = x[3 * i], sy[k] = x[3 * i + 1], sz[k] = x[3 * i + 2];
-    }
-    for (;;) {
-        int most = 0, stride = c->nbs;
-        /* in cell order: the particles of a cell scan the same runs, in cache */
-#pragma omp parallel for schedule(static) reduction(max : most)
-        for (int si = 0; si < n; si++) {
-            int i = sid[si];
-            int cell = cellof[i], ky = cell / dim[0] % dim[1],
-                kz = cell / dim[0] / dim[1];
-            double px = sx[si], py = sy[si], pz = sz[si];
-            int32_t *out = c->nbt + (size_t)i * (size_t)stride;
-            int cnt = 0, last = stride - 1;
-            for (int z = kz > 0 ? kz - 1 : 0; z <= kz + 1 && z < dim[2]; z++) {
-                /* distance from the particle to the layer of rows z (zero in its own) */
-                double dz = z < kz ? pz - (lo[2] + (z + 1) * h) : z > kz ? lo[2] + z * h - pz : 0;
-                dz = dz > 0 ? dz : 0;
-                for (int y = ky > 0 ? ky - 1 : 0; y <= ky + 1 && y < dim[1]; y++) {
-                    double dy = y < ky   ? py - (lo[1] + (y + 1) * h)
-                                : y > ky ? lo[1] + y * h - py
-                                         : 0;
-                    dy = dy > 0 ? dy : 0;
-                    double rest = reach2 - dy * dy - dz * dz;
-                    if (rest <= 0) continue;
-                    /* the row's cells within the sphere's chord at that distance */
-                    double rx = sqrt(rest) + 1e-9 * h;
-                    double u0 = (px - rx - lo[0]) * inv[0], u1 = (px + rx - lo[0]) * inv[0];
-                    int x0 = u0 > 0 ? (int)u0 : 0, x1 = u1 < dim[0] - 1 ? (int)u1 : dim[0] - 1;
-                    if (x1 < x0) continue;
-                    int row = (z * dim[1] + y) * dim[0];
-                    for (int k = cst[row + x0], e = cst[row + x1 + 1]; k < e; k++) {
-                        double ex = sx[k] - px, ey = sy[k] - py, ez = sz[k] - pz;
-                        /* branch-free append; past the stride the last slot is
-                           overwritten, and the lists are widened and redone */
-                        out[cnt < last ? cnt : last] = sid[k];
-                        cnt += (ex * ex + ey * ey + ez * ez < h2) & (sid[k] != i);
-                    }
-                }
-            }
-            c->nbc[i] = cnt;
-            most = cnt > most ? cnt : most;
-        }
-        if (most < c->nbs) return 1;
-        /* compressed regions: widen every list and redo (rare, deterministic) */
-        int wide = most + most / 2 + 1;
-        if (grow_i32(&c->nbt, (size_t)c->cap * (size_t)wide)) return -1;
-        c->nbs = wide;
-    }
 }
 
 /* ---------------------------------------------------------------- density and factors */
@@ -1122,7 +884,7 @@ static int cy_substep(stf_fluid *f, double dt)
     if (dense < 0) goto oom;
     c->dense = dense;
     if (!dense && grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
-    if (pair_offsets(f) != 0) goto oom;
+    if (cy_pair_offsets(f) != 0) goto oom;
     f->stage_seconds[STAGE_GRID] += omp_get_wtime() - t0;
     t0 = omp_get_wtime();
     /* one pass: walls, density and S_i, the warm start's k_i, gravity (Eq. 11), and the

@@ -1,0 +1,101 @@
+/* cy_internal.h - internal to the Carreau-Yasuda solver (cy*.c): the solver's state and
+ * what its files share. The files, each named after the part of the second paper it does
+ * (Zhang, Ban, Wang, Liu, Symmetry 2017; the citation is at the top of cy.c):
+ *   cy.c            set-up, the step (Algorithm 2) and its CFL substeps, statistics,
+ *                   checkpoints;
+ *   cy_neighbours.c the neighbour search of a non-periodic fluid and the compact pair lists. */
+#ifndef STF_CY_INTERNAL_H
+#define STF_CY_INTERNAL_H
+
+#include "cy.h"
+
+#include <stdint.h>
+#include <stdlib.h>
+
+/* A neighbour pair: j and grad W_ij (1/m^4, float: the pair arrays are streamed on every
+ * pass, so their size is the cost). */
+typedef struct cy_pair {
+    int32_t j;
+    float g[3];
+} cy_pair;
+
+typedef struct cy_state {
+    int cap;             /* particles the arrays hold */
+    double rho0;         /* rest density, kg/m^3 */
+    double wall_rho[WALL_BINS + 1];  /* wall density by distance, kg/m^3 */
+    double wall_grad[WALL_BINS + 1]; /* |sum_b m grad W_ib| by distance, kg/m^4 */
+    double *rho, *S, *kappa, *ktot, *rhostar; /* n each */
+    double *gw;          /* 3n: sum over walls of m grad W (points into the walls) */
+    double *qw;          /* n: sum over walls of v_wall . (m grad W) */
+    double *wv;          /* 9n: sum over walls of v_wall (x) m grad W (row-major) */
+    double *nu;          /* n: kinematic viscosity of the step, m^2/s */
+    double *b, *dv, *r, *p, *Ap; /* 3n each: viscosity solve */
+    float *lap;          /* per pair (as pair): m (r.grad W)/(r^2 + 0.01 h^2), kg/m^5; the
+                            central form: (d + 2) m / (S (r^2 + 0.01 h^2)), S = (dW/dr) / r,
+                            so that it times g g^T (g = grad W = S r) is (d + 2) m S r r^T /
+                            (r^2 + 0.01 h^2) (0 where S = 0) */
+    double wall_lap[WALL_BINS + 1]; /* the same summed over a wall's lattice, with Morris'
+                                       mirror velocity (see tables), by distance */
+    /* The quarter-space behind two perpendicular faces of a container, by the distances to
+       the two faces (d1, d2): counted by both faces' half-spaces, so subtracted once */
+    double quad_rho[WALL_BINS + 1][WALL_BINS + 1];
+    double quad_g1[WALL_BINS + 1][WALL_BINS + 1]; /* gradient sum along face 1's normal */
+    double quad_g2[WALL_BINS + 1][WALL_BINS + 1];
+    double quad_lap[WALL_BINS + 1][WALL_BINS + 1];
+    double *lw;          /* n: sum over walls of wall_lap */
+    double *lwv;         /* 3n: sum over walls of wall_lap * v_wall (central: of M_w v_wall) */
+    /* The central form (viscosity_form central): a wall's lattice gives the 3 x 3 block
+       M_w = sum_b (d + 2) m F_ib (1 + mirror ratio) x_ib x_ib^T / |x_ib|^2, F = (r.grad W)/
+       (r^2 + 0.01 h^2): for a half-space, wall_cn n n^T + wall_ct (I - n n^T) by distance;
+       for a container's quarter-space, in the frame of the two normals and the edge */
+    double wall_cn[WALL_BINS + 1], wall_ct[WALL_BINS + 1];
+    double quad_c11[WALL_BINS + 1][WALL_BINS + 1], quad_c22[WALL_BINS + 1][WALL_BINS + 1];
+    double quad_c12[WALL_BINS + 1][WALL_BINS + 1], quad_cee[WALL_BINS + 1][WALL_BINS + 1];
+    double *lwm;         /* 9n (central): sum over walls of M_w, row-major */
+    cy_pair *pair;       /* off[n]: each particle's neighbours within h, compact (CSR) */
+    int32_t *off;        /* n + 1: particle i's pairs are pair[off[i] .. off[i + 1]) */
+    size_t pair_cap;
+    double *kr;          /* n: kappa_i / rho_i of the current iteration, m^5/(kg s^2) */
+    double *irho;        /* n: 1 / rho_i */
+    double *mu;          /* n: rho_i nu_i, dynamic viscosity, Pa s */
+    /* The neighbour search of a non-periodic fluid (cy_neighbours): a dense grid of cells
+       (h across, h / XCELLS along x) over the particles' bounding box, the particles
+       counting-sorted into it */
+    int32_t *cstart;     /* ncell + 1: first sorted entry of each cell */
+    size_t cell_cap;
+    int32_t *cellof;     /* n: cell of each particle */
+    int32_t *sid;        /* n: particle of each sorted entry */
+    double *sx;          /* 3n: the sorted entries' positions, x then y then z (3 arrays) */
+    int32_t *nbt;        /* n * nbs: neighbours within h, in cell order */
+    int32_t *nbc;        /* n: how many */
+    int nbs;             /* stride of nbt */
+    int dense;           /* 1: this substep's lists are nbt/nbc, 0: the shared grid's */
+    char *hit;
+    int warm_n;          /* particles ktot holds the last step's totals of (0: none) */
+    stf_solver_stats stats;
+} cy_state;
+
+static inline int grow(double **p, size_t count)
+{
+    double *q = realloc(*p, (count ? count : 1) * sizeof *q);
+    if (!q) return -1;
+    *p = q;
+    return 0;
+}
+
+static inline int grow_i32(int32_t **p, size_t count)
+{
+    int32_t *q = realloc(*p, (count ? count : 1) * sizeof *q);
+    if (!q) return -1;
+    *p = q;
+    return 0;
+}
+
+/* cy_neighbours.c: this substep's neighbour lists of a non-periodic fluid, in c->nbt, c->nbc
+ * (returns 1; 0: the particles are too far-flung, use the shared grid; -1: out of memory);
+ * then the compact pair offsets of whichever lists c->dense names, with room for the pairs
+ * (0 / -1). */
+int cy_neighbours(stf_fluid *f);
+int cy_pair_offsets(stf_fluid *f);
+
+#endif
