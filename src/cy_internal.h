@@ -3,7 +3,8 @@
  * (Zhang, Ban, Wang, Liu, Symmetry 2017; the citation is at the top of cy.c):
  *   cy.c            set-up, the step (Algorithm 2) and its CFL substeps, statistics,
  *                   checkpoints;
- *   cy_neighbours.c the neighbour search of a non-periodic fluid and the compact pair lists. */
+ *   cy_neighbours.c the neighbour search of a non-periodic fluid and the compact pair lists;
+ *   cy_walls.c      solid walls as lattice half-spaces (tables by distance), their impulses. */
 #ifndef STF_CY_INTERNAL_H
 #define STF_CY_INTERNAL_H
 
@@ -11,6 +12,8 @@
 
 #include <stdint.h>
 #include <stdlib.h>
+
+#define PI 3.14159265358979323846
 
 /* A neighbour pair: j and grad W_ij (1/m^4, float: the pair arrays are streamed on every
  * pass, so their size is the cost). */
@@ -75,6 +78,35 @@ typedef struct cy_state {
     stf_solver_stats stats;
 } cy_state;
 
+/* ------------------------------------------------------------------ kernel (cubic spline) */
+
+/* Cubic spline of support h (Monaghan's M4 written with q = r/h in [0,1]). */
+static inline double kernel_w(double r, double h)
+{
+    double q = r / h, k = 8.0 / (PI * h * h * h);
+    if (q >= 1) return 0;
+    if (q <= 0.5) return k * (6 * q * q * q - 6 * q * q + 1);
+    double a = 1 - q;
+    return k * 2 * a * a * a;
+}
+
+/* dW/dr (<= 0). */
+static inline double kernel_dw(double r, double h)
+{
+    double q = r / h, l = 48.0 / (PI * h * h * h * h);
+    if (q >= 1) return 0;
+    if (q <= 0.5) return l * q * (3 * q - 2);
+    double a = 1 - q;
+    return -l * a * a;
+}
+
+/* Morris' pair factor (mu_i + mu_b) / (rho_i rho_b) with a wall's lattice particles b (at
+ * rho0, with the particle's own nu_i): the viscous force and its reaction on the collider. */
+static inline double wall_visc(const cy_state *c, int i)
+{
+    return c->nu[i] * (c->rho[i] + c->rho0) / (c->rho[i] * c->rho0);
+}
+
 static inline int grow(double **p, size_t count)
 {
     double *q = realloc(*p, (count ? count : 1) * sizeof *q);
@@ -97,5 +129,12 @@ static inline int grow_i32(int32_t **p, size_t count)
  * (0 / -1). */
 int cy_neighbours(stf_fluid *f);
 int cy_pair_offsets(stf_fluid *f);
+
+/* cy_walls.c: the rest density and the wall tables (at creation); the walls' terms at
+ * particle i (into c->gw, qw, wv, lw, lwv, lwm, and rho: the walls' part of the density);
+ * the walls' impulses of the substep given back to the colliders. */
+void cy_tables(stf_fluid *f, cy_state *c);
+void cy_walls_one(stf_fluid *f, int i);
+void cy_wall_reactions(stf_fluid *f, double dt);
 
 #endif
