@@ -4,7 +4,8 @@
  *   cy.c            set-up, the step (Algorithm 2) and its CFL substeps, statistics,
  *                   checkpoints;
  *   cy_neighbours.c the neighbour search of a non-periodic fluid and the compact pair lists;
- *   cy_walls.c      solid walls as lattice half-spaces (tables by distance), their impulses. */
+ *   cy_walls.c      solid walls as lattice half-spaces (tables by distance), their impulses;
+ *   cy_density.c    the density (Eq. 6), S_i (Eq. 20-21), the pairs' gradients and weights. */
 #ifndef STF_CY_INTERNAL_H
 #define STF_CY_INTERNAL_H
 
@@ -100,6 +101,11 @@ static inline double kernel_dw(double r, double h)
     return -l * a * a;
 }
 
+static inline int is_periodic(const stf_fluid *f)
+{
+    return f->def.periodic[0] > 0 || f->def.periodic[1] > 0 || f->def.periodic[2] > 0;
+}
+
 /* Morris' pair factor (mu_i + mu_b) / (rho_i rho_b) with a wall's lattice particles b (at
  * rho0, with the particle's own nu_i): the viscous force and its reaction on the collider. */
 static inline double wall_visc(const cy_state *c, int i)
@@ -136,5 +142,9 @@ int cy_pair_offsets(stf_fluid *f);
 void cy_tables(stf_fluid *f, cy_state *c);
 void cy_walls_one(stf_fluid *f, int i);
 void cy_wall_reactions(stf_fluid *f, double dt);
+
+/* cy_density.c: particle i's density (c->rho, added to the walls' part cy_walls_one left
+ * there), 1 / rho, S_i, and its pairs' gradients and viscous weights (c->pair, c->lap). */
+void cy_density_one(stf_fluid *f, int i);
 
 #endif
