@@ -5,7 +5,8 @@
  *                   checkpoints;
  *   cy_neighbours.c the neighbour search of a non-periodic fluid and the compact pair lists;
  *   cy_walls.c      solid walls as lattice half-spaces (tables by distance), their impulses;
- *   cy_density.c    the density (Eq. 6), S_i (Eq. 20-21), the pairs' gradients and weights. */
+ *   cy_density.c    the density (Eq. 6), S_i (Eq. 20-21), the pairs' gradients and weights;
+ *   cy_pressure.c   the pressure projection (Algorithm 1, Eq. 19-21). */
 #ifndef STF_CY_INTERNAL_H
 #define STF_CY_INTERNAL_H
 
@@ -146,5 +147,9 @@ void cy_wall_reactions(stf_fluid *f, double dt);
 /* cy_density.c: particle i's density (c->rho, added to the walls' part cy_walls_one left
  * there), 1 / rho, S_i, and its pairs' gradients and viscous weights (c->pair, c->lap). */
 void cy_density_one(stf_fluid *f, int i);
+
+/* cy_pressure.c: Algorithm 1 on f->v for a substep of dt, w the warm start's weight (0: from
+ * zero pressure; c->kappa, kr and ktot as the density pass left them). */
+void cy_pressure_project(stf_fluid *f, double dt, double w);
 
 #endif
