@@ -6,7 +6,9 @@
  *   cy_neighbours.c the neighbour search of a non-periodic fluid and the compact pair lists;
  *   cy_walls.c      solid walls as lattice half-spaces (tables by distance), their impulses;
  *   cy_density.c    the density (Eq. 6), S_i (Eq. 20-21), the pairs' gradients and weights;
- *   cy_pressure.c   the pressure projection (Algorithm 1, Eq. 19-21). */
+ *   cy_pressure.c   the pressure projection (Algorithm 1, Eq. 19-21);
+ *   cy_viscosity.c  the strain rate and the viscosity (Eq. 3, 9, 22), the viscous step,
+ *                   explicit or implicit by conjugate gradients (Eq. 23-26). */
 #ifndef STF_CY_INTERNAL_H
 #define STF_CY_INTERNAL_H
 
@@ -151,5 +153,9 @@ void cy_density_one(stf_fluid *f, int i);
 /* cy_pressure.c: Algorithm 1 on f->v for a substep of dt, w the warm start's weight (0: from
  * zero pressure; c->kappa, kr and ktot as the density pass left them). */
 void cy_pressure_project(stf_fluid *f, double dt, double w);
+
+/* cy_viscosity.c: the viscosity step on f->v (v** -> v) for a substep of dt; leaves in c->r
+ * the velocity the walls' viscous impulses are taken at (cy_wall_reactions). */
+void cy_viscosity_solve(stf_fluid *f, double dt);
 
 #endif
