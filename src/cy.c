@@ -225,8 +225,9 @@ oom:
 /* One coupled step of length dt: a single substep, or with cfl > 0 substeps of equal length
  * within dt whose count is set, at each substep's start, by the CFL condition
  * dt_sub <= min(dt_max, cfl h / v_max) on the remaining time (so the last one is not a
- * sliver). The
- * colliders' impulses add up over the substeps (they were cleared by stf_fluid_step). */
+ * sliver). The colliders' impulses add up over the substeps (they were cleared by
+ * stf_fluid_step), the statistics too (stf_solver_stats_merge, as stf_sim_step adds up the
+ * fluid steps of a split coupled step). */
 int cy_step(stf_fluid *f, double dt)
 {
     cy_state *c = f->cy;
@@ -253,20 +254,15 @@ int cy_step(stf_fluid *f, double dt)
            and a thin skin (0.02 h) halves the candidates to search and filter */
         f->grid.skin = 4 * vmax * sub > 0.25 * f->h ? 0.02 : 0;
         if (cy_substep(f, sub) != 0) return -1;
-        st->substeps++;
-        st->dt_min = sub < st->dt_min ? sub : st->dt_min;
-        st->dt_max = sub > st->dt_max ? sub : st->dt_max;
-        double cn = vmax * sub / f->h;
-        st->cfl_number = cn > st->cfl_number ? cn : st->cfl_number;
-        st->pressure_iterations_total += st->pressure_iterations;
-        st->viscosity_iterations_total += st->viscosity_iterations;
-        if (st->pressure_iterations > st->pressure_iterations_max)
-            st->pressure_iterations_max = st->pressure_iterations;
-        if (st->viscosity_iterations > st->viscosity_iterations_max)
-            st->viscosity_iterations_max = st->viscosity_iterations;
-        st->density_error_sum += st->density_error;
-        st->density_error_max = st->density_error > st->density_error_max ? st->density_error
-                                                                          : st->density_error_max;
+        /* the substep's statistics (its own fields as the stages left them in st) */
+        stf_solver_stats one = *st;
+        one.substeps = 1;
+        one.dt_min = one.dt_max = sub;
+        one.cfl_number = vmax * sub / f->h;
+        one.pressure_iterations_total = one.pressure_iterations_max = st->pressure_iterations;
+        one.viscosity_iterations_total = one.viscosity_iterations_max = st->viscosity_iterations;
+        one.density_error_sum = one.density_error_max = st->density_error;
+        stf_solver_stats_merge(st, &one);
         left -= sub;
     }
     f->time = t_end; /* no round-off drift from the substeps */
@@ -280,6 +276,30 @@ void stf_fluid_solver_stats(const stf_fluid *f, stf_solver_stats *st)
 {
     if (f->cy) *st = f->cy->stats;
     else memset(st, 0, sizeof *st);
+}
+
+/* The one merge of substep statistics: cy_step adds each CFL substep to the step's, and
+ * stf_sim_step (../ode_glue/stf_sim.c) each fluid step to the coupled step's. */
+void stf_solver_stats_merge(stf_solver_stats *acc, const stf_solver_stats *part)
+{
+    if (acc->substeps == 0) { /* empty */
+        *acc = *part;
+        return;
+    }
+    stf_solver_stats sum = *part; /* the last substep's own fields, and the sums: */
+    sum.substeps += acc->substeps;
+    sum.pressure_iterations_total += acc->pressure_iterations_total;
+    sum.viscosity_iterations_total += acc->viscosity_iterations_total;
+    sum.density_error_sum += acc->density_error_sum;
+#define STF_MAXF(F) sum.F = acc->F > sum.F ? acc->F : sum.F
+    STF_MAXF(density_error_max);
+    STF_MAXF(pressure_iterations_max);
+    STF_MAXF(viscosity_iterations_max);
+    STF_MAXF(cfl_number);
+    STF_MAXF(dt_max);
+#undef STF_MAXF
+    sum.dt_min = acc->dt_min < sum.dt_min ? acc->dt_min : sum.dt_min;
+    *acc = sum;
 }
 
 void stf_fluid_get_pressures(const stf_fluid *f, double *p)
