@@ -2,28 +2,34 @@
  * (the second paper: Zhang, Ban, Wang, Liu, "A Symmetry Particle Method towards Implicit
  * Non-Newtonian Fluids", Symmetry 9(2), 26, 2017: Eq. 3, 9-26, Algorithms 1 and 2).
  *
- * One step (Algorithm 2):
- *   1. neighbours (cy_neighbours; the shared grid if periodic), densities
- *      rho_i = sum_j m W_ij + walls (Eq. 6) and the per-particle factors S_i of Eq. 20-21;
- *   2. v* = v + dt g (Eq. 11);
- *   3. pressure projection (Algorithm 1): predicted densities rho*_i = rho_i + dt sum_j m
- *      (v_i - v_j).grad W_ij (Eq. 19), per-particle stiffness k_i from Eq. 21, velocity
- *      change -dt sum_j m (k_i/rho_i + k_j/rho_j) grad W_ij; repeated until the mean
+ * This file: the model's set-up (its parameters, the solver's arrays), one step of
+ * Algorithm 2 (cy_substep) and the CFL substeps of a coupled step (cy_step), the solver's
+ * statistics, its effective parameters and its checkpoints. The stages of a step, each in
+ * its own file (the solver's state is in cy_internal.h):
+ *   1. neighbours (cy_neighbours.c; the shared grid if periodic), densities
+ *      rho_i = sum_j m W_ij + walls (Eq. 6) and the per-particle factors S_i of Eq. 20-21
+ *      (cy_density.c; the walls' part, cy_walls.c);
+ *   2. v* = v + dt g (Eq. 11; here, in the same pass);
+ *   3. pressure projection (Algorithm 1, cy_pressure.c): predicted densities rho*_i = rho_i
+ *      + dt sum_j m (v_i - v_j).grad W_ij (Eq. 19), per-particle stiffness k_i from Eq. 21,
+ *      velocity change -dt sum_j m (k_i/rho_i + k_j/rho_j) grad W_ij; repeated until the mean
  *      density error is below eta and at least min_pressure_iterations times -> v**;
- *   4. viscosity: strain rate D_i = L_i + L_i^T, L_i = (1/rho_i) sum_j m (v_j - v_i) (x)
- *      grad W_ij (Eq. 9, 22), nu_i = Carreau-Yasuda(g_i) (Eq. 3), g_i = sqrt(D_i:D_i / 2);
- *      viscous acceleration with the pair viscosity (see below); explicit (forward Euler)
- *      or implicit (backward Euler, nu frozen at its value from v**, solved matrix-free by
- *      conjugate gradients to |r| <= cg_tolerance |b|, Eq. 23-26);
+ *   4. viscosity (cy_viscosity.c): strain rate D_i = L_i + L_i^T, L_i = (1/rho_i) sum_j m
+ *      (v_j - v_i) (x) grad W_ij (Eq. 9, 22), nu_i = Carreau-Yasuda(g_i) (Eq. 3),
+ *      g_i = sqrt(D_i:D_i / 2); viscous acceleration with the pair viscosity; explicit
+ *      (forward Euler) or implicit (backward Euler, nu frozen at its value from v**, solved
+ *      matrix-free by conjugate gradients to |r| <= cg_tolerance |b|, Eq. 23-26); the walls'
+ *      impulses back to the colliders (cy_walls.c);
  *   5. x += dt v; collisions with the shared collider stage; v from the position change.
  *
- * Choices where the text is garbled or silent (each one physically consistent):
- * - Eq. 20-21, the free surface, the projection's relaxation and warm start: see
- *   cy_pressure.c.
+ * Choices where the text is garbled or silent (each one physically consistent) are explained
+ * in the file that makes them:
+ * - Eq. 20-21, the free surface, the projection's relaxation and warm start: cy_pressure.c;
  * - the shear rate, Eq. 24, the viscous force (Morris' Laplacian, not Eq. 10) and its
- *   central form: see cy_viscosity.c.
- * - cfl splits a step into CFL-limited substeps (cy_step).
- * - Walls: see cy_walls.c.
+ *   central form: cy_viscosity.c;
+ * - walls as half-spaces of lattice particles, not boundary particles: cy_walls.c;
+ * - the neighbour search: cy_neighbours.c;
+ * - here: cfl splits a step into CFL-limited substeps (cy_step).
  */
 #include "cy_internal.h"
 #include "state.h"
@@ -233,6 +239,7 @@ int cy_step(stf_fluid *f, double dt)
     cy_state *c = f->cy;
     stf_solver_stats *st = &c->stats;
     double cfl = f->def.cy.cfl, left = dt, t_end = f->time + dt;
+    /* no substep yet: the first merge takes the first substep's statistics as they are */
     st->substeps = 0;
     st->dt_min = dt;
     st->dt_max = 0;

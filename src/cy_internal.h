@@ -4,11 +4,11 @@
  *   cy.c            set-up, the step (Algorithm 2) and its CFL substeps, statistics,
  *                   checkpoints;
  *   cy_neighbours.c the neighbour search of a non-periodic fluid and the compact pair lists;
- *   cy_walls.c      solid walls as lattice half-spaces (tables by distance), their impulses;
  *   cy_density.c    the density (Eq. 6), S_i (Eq. 20-21), the pairs' gradients and weights;
  *   cy_pressure.c   the pressure projection (Algorithm 1, Eq. 19-21);
  *   cy_viscosity.c  the strain rate and the viscosity (Eq. 3, 9, 22), the viscous step,
- *                   explicit or implicit by conjugate gradients (Eq. 23-26). */
+ *                   explicit or implicit by conjugate gradients (Eq. 23-26);
+ *   cy_walls.c      solid walls as lattice half-spaces (tables by distance), their impulses. */
 #ifndef STF_CY_INTERNAL_H
 #define STF_CY_INTERNAL_H
 
