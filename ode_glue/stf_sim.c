@@ -478,25 +478,7 @@ int stf_sim_step(stf_sim *s)
             stf_solver_stats st;
             stf_fluid_solver_stats(s->fluid, &st);
             if (st.substeps > 0) taken = st.substeps, lo = st.dt_min, hi = st.dt_max;
-            stf_solver_stats sum = st; /* the last substep's own fields, and the sums: */
-            sum.substeps += acc->substeps;
-            sum.pressure_iterations_total += acc->pressure_iterations_total;
-            sum.viscosity_iterations_total += acc->viscosity_iterations_total;
-            sum.density_error_sum += acc->density_error_sum;
-#define STF_MAXF(F) sum.F = acc->F > sum.F ? acc->F : sum.F
-            STF_MAXF(density_error_max);
-            STF_MAXF(pressure_iterations_max);
-            STF_MAXF(viscosity_iterations_max);
-            STF_MAXF(cfl_number);
-            STF_MAXF(dt_max);
-            STF_MAXF(max_viscosity);
-#undef STF_MAXF
-            if (j > 0) {
-                sum.dt_min = acc->dt_min < sum.dt_min ? acc->dt_min : sum.dt_min;
-                sum.min_viscosity = acc->min_viscosity < sum.min_viscosity ? acc->min_viscosity
-                                                                           : sum.min_viscosity;
-            }
-            *acc = sum;
+            stf_solver_stats_merge(acc, &st); /* the same merge as cy_step's substeps */
         }
         s->substeps += taken;
         if (s->dt_min == 0 || lo < s->dt_min) s->dt_min = lo;

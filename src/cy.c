@@ -2,68 +2,36 @@
  * (the second paper: Zhang, Ban, Wang, Liu, "A Symmetry Particle Method towards Implicit
  * Non-Newtonian Fluids", Symmetry 9(2), 26, 2017: Eq. 3, 9-26, Algorithms 1 and 2).
  *
- * One step (Algorithm 2):
- *   1. neighbours (cy_neighbours; the shared grid if periodic), densities
- *      rho_i = sum_j m W_ij + walls (Eq. 6) and the per-particle factors S_i of Eq. 20-21;
- *   2. v* = v + dt g (Eq. 11);
- *   3. pressure projection (Algorithm 1): predicted densities rho*_i = rho_i + dt sum_j m
- *      (v_i - v_j).grad W_ij (Eq. 19), per-particle stiffness k_i from Eq. 21, velocity
- *      change -dt sum_j m (k_i/rho_i + k_j/rho_j) grad W_ij; repeated until the mean
+ * This file: the model's set-up (its parameters, the solver's arrays), one step of
+ * Algorithm 2 (cy_substep) and the CFL substeps of a coupled step (cy_step), the solver's
+ * statistics, its effective parameters and its checkpoints. The stages of a step, each in
+ * its own file (the solver's state is in cy_internal.h):
+ *   1. neighbours (cy_neighbours.c; the shared grid if periodic), densities
+ *      rho_i = sum_j m W_ij + walls (Eq. 6) and the per-particle factors S_i of Eq. 20-21
+ *      (cy_density.c; the walls' part, cy_walls.c);
+ *   2. v* = v + dt g (Eq. 11; here, in the same pass);
+ *   3. pressure projection (Algorithm 1, cy_pressure.c): predicted densities rho*_i = rho_i
+ *      + dt sum_j m (v_i - v_j).grad W_ij (Eq. 19), per-particle stiffness k_i from Eq. 21,
+ *      velocity change -dt sum_j m (k_i/rho_i + k_j/rho_j) grad W_ij; repeated until the mean
  *      density error is below eta and at least min_pressure_iterations times -> v**;
- *   4. viscosity: strain rate D_i = L_i + L_i^T, L_i = (1/rho_i) sum_j m (v_j - v_i) (x)
- *      grad W_ij (Eq. 9, 22), nu_i = Carreau-Yasuda(g_i) (Eq. 3), g_i = sqrt(D_i:D_i / 2);
- *      viscous acceleration with the pair viscosity (see below); explicit (forward Euler)
- *      or implicit (backward Euler, nu frozen at its value from v**, solved matrix-free by
- *      conjugate gradients to |r| <= cg_tolerance |b|, Eq. 23-26);
+ *   4. viscosity (cy_viscosity.c): strain rate D_i = L_i + L_i^T, L_i = (1/rho_i) sum_j m
+ *      (v_j - v_i) (x) grad W_ij (Eq. 9, 22), nu_i = Carreau-Yasuda(g_i) (Eq. 3),
+ *      g_i = sqrt(D_i:D_i / 2); viscous acceleration with the pair viscosity; explicit
+ *      (forward Euler) or implicit (backward Euler, nu frozen at its value from v**, solved
+ *      matrix-free by conjugate gradients to |r| <= cg_tolerance |b|, Eq. 23-26); the walls'
+ *      impulses back to the colliders (cy_walls.c);
  *   5. x += dt v; collisions with the shared collider stage; v from the position change.
  *
- * Choices where the text is garbled or silent (each one physically consistent):
- * - Eq. 20-21 as printed have k_i = (rho0 - rho*)/(dt^2 alpha_i), alpha_i = rho_i (...);
- *   dimensions and the sign of Eq. 20 give k_i = (rho*_i - rho0) rho_i / (dt^2 S_i) with
- *   S_i = |sum_j m grad W_ij|^2 + sum_j |m grad W_ij|^2: k_i is then p_i / rho_i (m^2/s^2), the
- *   velocity update of Algorithm 1 is the symmetric SPH pressure force, and the pressure of
- *   a particle is rho_i times the sum of its k_i over the iterations.
- * - Free surface: only compression is corrected (rho* below rho0 counts as rho0), so the
- *   projection never pulls particles together; the density error is the mean compression.
- * - Shear rate: sqrt(D:D / 2), which is |du/dy| in simple shear (the paper's Frobenius norm
- *   sqrt(D:D) is sqrt(2) larger, which only rescales K).
- * - Eq. 24 as printed drops mu_inf and the "1 +"; the implicit step here keeps the full
- *   Eq. 3 and linearises by freezing nu over the step (one Picard step).
- * - The viscous force is Morris et al.'s (1997) SPH Laplacian with the pair viscosity
- *   mu_i + mu_j (the usual generalised-Newtonian SPH form), not the divergence of the SPH
- *   stress of Eq. 10: that is a first derivative of a first derivative, blind to velocities
- *   alternating from particle to particle; with it, plane Poiseuille flow came out with
- *   layers alternating and 4x too fast (measured). Morris' operator is symmetric negative
- *   semi-definite (pair weights m (mu_i + mu_j) (r.grad W) / (rho_i rho_j (r^2 + 0.01 h^2))),
- *   so I - dt (viscous operator) is symmetric positive definite and CG applies. For the
- *   plane shear flows of the tests it is exact: div(mu grad v) = div(mu D) there.
- * - viscosity_form central replaces Morris' pair force by Monaghan's (1997, 2005) central one,
- *   a_i = sum_j (d + 2) m (mu_i + mu_j) / (rho_i rho_j) F_ij (x_ij . u_ij) x_ij / |x_ij|^2,
- *   F_ij = (x_ij . grad W_ij) / (|x_ij|^2 + 0.01 h^2), d = 3: Morris' weight, along x_ij. For
- *   uniform rho and nu that is 2 (d + 2) nu sum_j (m / rho) (u_ij . x_ij) grad W_ij /
- *   (|x_ij|^2 + 0.01 h^2), whose Taylor expansion is nu (lap u + 2 grad div u): nu lap u for
- *   divergence-free flow, as Morris' 2 nu sum_j (m / rho) F_ij u_ij (test_cy pins both
- *   constants with a sinusoidal shear). The pair forces lie along x_ij, so angular momentum is
- *   conserved and a rigid rotation feels none. The implicit operator's blocks are
- *   w_ij x_ij x_ij^T (still symmetric negative semi-definite: CG applies); a wall's lattice
- *   gives the 3 x 3 block sum_b over its mirror particles (tables by distance). Its fourth
- *   moment over the neighbours is not isotropic on the cubic lattice at h = 2 spacings: shear
- *   along the lattice axes sees 0.69 nu (0.93 at 3 spacings, as Morris at 4).
- * - The projection is Jacobi with the full k_i of Eq. 21 (no relaxation), from zero
- *   pressure each step, as Algorithm 1, unless the scene asks for relaxation and warm_start
- *   (see pressure_project); cfl splits a step into CFL-limited substeps (cy_step).
- * - Walls (any collider: container, ODE bodies) are a half-space of lattice particles at
- *   rest density that move with the solid (tabulated by distance, as the Clavet model's
- *   mirror particles in pressure.c): they add to density and S_i, take part in the
- *   projection with the particle's own k_i, in the strain rate with the solid's velocity, and
- *   in the viscous force with Morris' mirror velocity (zero relative velocity on the surface:
- *   no slip). Every velocity change they cause is an impulse the collider receives back,
- *   which is how ODE bodies feel buoyancy and drag. Where two colliders meet, both count
- *   (the corner's lattice twice); a container's own faces count one by one, with the
- *   quarter-space behind each edge subtracted once (the triple corner's octant is then
- *   missing once: at least 0.87 h from a particle, a small term).
+ * Choices where the text is garbled or silent (each one physically consistent) are explained
+ * in the file that makes them:
+ * - Eq. 20-21, the free surface, the projection's relaxation and warm start: cy_pressure.c;
+ * - the shear rate, Eq. 24, the viscous force (Morris' Laplacian, not Eq. 10) and its
+ *   central form: cy_viscosity.c;
+ * - walls as half-spaces of lattice particles, not boundary particles: cy_walls.c;
+ * - the neighbour search: cy_neighbours.c;
+ * - here: cfl splits a step into CFL-limited substeps (cy_step).
  */
-#include "cy.h"
+#include "cy_internal.h"
 #include "state.h"
 
 #include <math.h>
@@ -71,110 +39,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-
-#define PI 3.14159265358979323846
-
-/* A neighbour pair: j and grad W_ij (1/m^4, float: the pair arrays are streamed on every
- * pass, so their size is the cost). */
-typedef struct cy_pair {
-    int32_t j;
-    float g[3];
-} cy_pair;
-
-typedef struct cy_state {
-    int cap;             /* particles the arrays hold */
-    double rho0;         /* rest density, kg/m^3 */
-    double wall_rho[WALL_BINS + 1];  /* wall density by distance, kg/m^3 */
-    double wall_grad[WALL_BINS + 1]; /* |sum_b m grad W_ib| by distance, kg/m^4 */
-    double *rho, *S, *kappa, *ktot, *rhostar; /* n each */
-    double *gw;          /* 3n: sum over walls of m grad W (points into the walls) */
-    double *qw;          /* n: sum over walls of v_wall . (m grad W) */
-    double *wv;          /* 9n: sum over walls of v_wall (x) m grad W (row-major) */
-    double *nu;          /* n: kinematic viscosity of the step, m^2/s */
-    double *b, *dv, *r, *p, *Ap; /* 3n each: viscosity solve */
-    float *lap;          /* per pair (as pair): m (r.grad W)/(r^2 + 0.01 h^2), kg/m^5; the
-                            central form: (d + 2) m / (S (r^2 + 0.01 h^2)), S = (dW/dr) / r,
-                            so that it times g g^T (g = grad W = S r) is (d + 2) m S r r^T /
-                            (r^2 + 0.01 h^2) (0 where S = 0) */
-    double wall_lap[WALL_BINS + 1]; /* the same summed over a wall's lattice, with Morris'
-                                       mirror velocity (see tables), by distance */
-    /* The quarter-space behind two perpendicular faces of a container, by the distances to
-       the two faces (d1, d2): counted by both faces' half-spaces, so subtracted once */
-    double quad_rho[WALL_BINS + 1][WALL_BINS + 1];
-    double quad_g1[WALL_BINS + 1][WALL_BINS + 1]; /* gradient sum along face 1's normal */
-    double quad_g2[WALL_BINS + 1][WALL_BINS + 1];
-    double quad_lap[WALL_BINS + 1][WALL_BINS + 1];
-    double *lw;          /* n: sum over walls of wall_lap */
-    double *lwv;         /* 3n: sum over walls of wall_lap * v_wall (central: of M_w v_wall) */
-    /* The central form (viscosity_form central): a wall's lattice gives the 3 x 3 block
-       M_w = sum_b (d + 2) m F_ib (1 + mirror ratio) x_ib x_ib^T / |x_ib|^2, F = (r.grad W)/
-       (r^2 + 0.01 h^2): for a half-space, wall_cn n n^T + wall_ct (I - n n^T) by distance;
-       for a container's quarter-space, in the frame of the two normals and the edge */
-    double wall_cn[WALL_BINS + 1], wall_ct[WALL_BINS + 1];
-    double quad_c11[WALL_BINS + 1][WALL_BINS + 1], quad_c22[WALL_BINS + 1][WALL_BINS + 1];
-    double quad_c12[WALL_BINS + 1][WALL_BINS + 1], quad_cee[WALL_BINS + 1][WALL_BINS + 1];
-    double *lwm;         /* 9n (central): sum over walls of M_w, row-major */
-    cy_pair *pair;       /* off[n]: each particle's neighbours within h, compact (CSR) */
-    int32_t *off;        /* n + 1: particle i's pairs are pair[off[i] .. off[i + 1]) */
-    size_t pair_cap;
-    double *kr;          /* n: kappa_i / rho_i of the current iteration, m^5/(kg s^2) */
-    double *irho;        /* n: 1 / rho_i */
-    double *mu;          /* n: rho_i nu_i, dynamic viscosity, Pa s */
-    /* The neighbour search of a non-periodic fluid (cy_neighbours): a dense grid of cells
-       (h across, h / XCELLS along x) over the particles' bounding box, the particles
-       counting-sorted into it */
-    int32_t *cstart;     /* ncell + 1: first sorted entry of each cell */
-    size_t cell_cap;
-    int32_t *cellof;     /* n: cell of each particle */
-    int32_t *sid;        /* n: particle of each sorted entry */
-    double *sx;          /* 3n: the sorted entries' positions, x then y then z (3 arrays) */
-    int32_t *nbt;        /* n * nbs: neighbours within h, in cell order */
-    int32_t *nbc;        /* n: how many */
-    int nbs;             /* stride of nbt */
-    int dense;           /* 1: this substep's lists are nbt/nbc, 0: the shared grid's */
-    char *hit;
-    int warm_n;          /* particles ktot holds the last step's totals of (0: none) */
-    stf_solver_stats stats;
-} cy_state;
-
-/* ------------------------------------------------------------------ kernel (cubic spline) */
-
-/* Cubic spline of support h (Monaghan's M4 written with q = r/h in [0,1]). */
-static double kernel_w(double r, double h)
-{
-    double q = r / h, k = 8.0 / (PI * h * h * h);
-    if (q >= 1) return 0;
-    if (q <= 0.5) return k * (6 * q * q * q - 6 * q * q + 1);
-    double a = 1 - q;
-    return k * 2 * a * a * a;
-}
-
-/* dW/dr (<= 0). */
-static double kernel_dw(double r, double h)
-{
-    double q = r / h, l = 48.0 / (PI * h * h * h * h);
-    if (q >= 1) return 0;
-    if (q <= 0.5) return l * q * (3 * q - 2);
-    double a = 1 - q;
-    return -l * a * a;
-}
-
-static int is_periodic(const stf_fluid *f)
-{
-    return f->def.periodic[0] > 0 || f->def.periodic[1] > 0 || f->def.periodic[2] > 0;
-}
-
-/* x_i - x_j with the nearest periodic image; returns |r|. */
-static double pair_vec(const stf_fluid *f, int i, int j, double r[3])
-{
-    for (int a = 0; a < 3; a++) {
-        double d = f->x[3 * i + a] - f->x[3 * j + a];
-        double L = f->def.periodic[a];
-        if (L > 0) d -= L * floor(d / L + 0.5);
-        r[a] = d;
-    }
-    return sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
-}
 
 /* ----------------------------------------------------------------------- parameters */
 
@@ -225,116 +89,13 @@ int cy_check_def(const stf_fluid_def *d, char *err, size_t errlen)
     return 0;
 }
 
-double stf_cy_viscosity(const stf_cy_def *c, double g)
-{
-    /* Eq. 3 */
-    double t = pow(c->K * g, c->alpha);
-    return c->mu_inf + (c->mu0 - c->mu_inf) * pow(1.0 + t, (c->n - 1.0) / c->alpha);
-}
-
 /* ----------------------------------------------------------------------- creation */
-
-/* Rest density: the kernel sum of the cubic lattice the blocks are filled with, so a block
- * starts at rho0; and the wall tables (a half-space of that lattice, first layer half a
- * spacing inside the solid, so a particle half a spacing from a wall sees the lattice). */
-static void tables(stf_fluid *f, cy_state *c)
-{
-    double s = f->def.spacing, h = f->h, m = f->mass;
-    int k = (int)ceil(h / s) + 1;
-    double sum = 0;
-    for (int a = -k; a <= k; a++)
-        for (int b = -k; b <= k; b++)
-            for (int e = -k; e <= k; e++)
-                sum += kernel_w(s * sqrt((double)(a * a + b * b + e * e)), h);
-    c->rho0 = m * sum;
-    for (int bin = 0; bin <= WALL_BINS; bin++) {
-        double d = h * bin / WALL_BINS, rho = 0, grad = 0, lap = 0, cn = 0, ct = 0;
-        double dd = d > 0.05 * s ? d : 0.05 * s;
-        for (int layer = 0; layer <= k; layer++)
-            for (int a = -k; a <= k; a++)
-                for (int e = -k; e <= k; e++) {
-                    double dz = d + s * (0.5 + layer), dx = a * s, dy = e * s;
-                    double r = sqrt(dx * dx + dy * dy + dz * dz);
-                    if (r >= h) continue;
-                    rho += m * kernel_w(r, h);
-                    grad += -m * kernel_dw(r, h) * dz / r;
-                    /* Morris et al. (1997): the wall particle b moves with v_w - (d_b/d)
-                       (v_i - v_w), d_b its depth in the solid, so the velocity is zero on the
-                       surface itself; d_b/d capped at 1.5 */
-                    double depth = s * (0.5 + layer), ratio = depth / dd;
-                    double l = m * kernel_dw(r, h) * r / (r * r + 0.01 * h * h) *
-                               (1 + (ratio < 1.5 ? ratio : 1.5));
-                    lap += l;
-                    /* the central form's block: (d + 2) l x x^T / r^2, normal and one
-                       tangential component (the two tangential ones are equal) */
-                    cn += 5 * l * dz * dz / (r * r);
-                    ct += 5 * l * 0.5 * (dx * dx + dy * dy) / (r * r);
-                }
-        c->wall_lap[bin] = lap;
-        c->wall_cn[bin] = cn;
-        c->wall_ct[bin] = ct;
-        c->wall_rho[bin] = rho;
-        c->wall_grad[bin] = grad;
-    }
-    for (int b1 = 0; b1 <= WALL_BINS; b1++)
-        for (int b2 = 0; b2 <= WALL_BINS; b2++) {
-            double d1 = h * b1 / WALL_BINS, d2 = h * b2 / WALL_BINS;
-            double rho = 0, g1 = 0, g2 = 0, lap = 0, c11 = 0, c22 = 0, c12 = 0, cee = 0;
-            for (int l1 = 0; l1 <= k; l1++)
-                for (int l2 = 0; l2 <= k; l2++)
-                    for (int a = -k; a <= k; a++) {
-                        double z1 = d1 + s * (0.5 + l1), z2 = d2 + s * (0.5 + l2), e = a * s;
-                        double r = sqrt(z1 * z1 + z2 * z2 + e * e);
-                        if (r >= h) continue;
-                        rho += m * kernel_w(r, h);
-                        g1 += -m * kernel_dw(r, h) * z1 / r;
-                        g2 += -m * kernel_dw(r, h) * z2 / r;
-                        /* mirror velocity ratio at its cap (the corner is deep in the solid) */
-                        double l = m * kernel_dw(r, h) * r / (r * r + 0.01 * h * h) * 2.5;
-                        lap += l;
-                        c11 += 5 * l * z1 * z1 / (r * r);
-                        c22 += 5 * l * z2 * z2 / (r * r);
-                        c12 += 5 * l * z1 * z2 / (r * r);
-                        cee += 5 * l * e * e / (r * r);
-                    }
-            c->quad_rho[b1][b2] = rho;
-            c->quad_g1[b1][b2] = g1;
-            c->quad_g2[b1][b2] = g2;
-            c->quad_lap[b1][b2] = lap;
-            c->quad_c11[b1][b2] = c11;
-            c->quad_c22[b1][b2] = c22;
-            c->quad_c12[b1][b2] = c12;
-            c->quad_cee[b1][b2] = cee;
-        }
-}
-
-/* The quarter-space terms at distances d1, d2 (< h) from two perpendicular faces (bilinear). */
-static void quad_at(const cy_state *c, double d1, double d2, double h, double *rho, double *g1,
-                    double *g2, double *lap, double qc[4])
-{
-    double u = d1 / h * WALL_BINS, w = d2 / h * WALL_BINS;
-    u = u < 0 ? 0 : u > WALL_BINS - 1e-9 ? WALL_BINS - 1e-9 : u;
-    w = w < 0 ? 0 : w > WALL_BINS - 1e-9 ? WALL_BINS - 1e-9 : w;
-    int i = (int)u, j = (int)w;
-    double t = u - i, q = w - j;
-    double c00 = (1 - t) * (1 - q), c10 = t * (1 - q), c01 = (1 - t) * q, c11 = t * q;
-#define BILIN(T) (c00 * c->T[i][j] + c10 * c->T[i + 1][j] + c01 * c->T[i][j + 1] + c11 * c->T[i + 1][j + 1])
-    *rho = BILIN(quad_rho);
-    *g1 = BILIN(quad_g1);
-    *g2 = BILIN(quad_g2);
-    *lap = BILIN(quad_lap);
-    qc[0] = BILIN(quad_c11);
-    qc[1] = BILIN(quad_c22);
-    qc[2] = BILIN(quad_c12);
-    qc[3] = BILIN(quad_cee);
-#undef BILIN
-}
 
 int cy_create(stf_fluid *f)
 {
     cy_state *c = calloc(1, sizeof *c);
     if (!c) return -1;
-    tables(f, c);
+    cy_tables(f, c);
     f->cy = c;
     for (int a = 0; a < 3; a++) {
         f->grid.period[a] = f->def.periodic[a];
@@ -354,52 +115,6 @@ void cy_free(stf_fluid *f)
     for (size_t k = 0; k < sizeof arrays / sizeof *arrays; k++) free(arrays[k]);
     free(c);
     f->cy = NULL;
-}
-
-static int grow(double **p, size_t count)
-{
-    double *q = realloc(*p, (count ? count : 1) * sizeof *q);
-    if (!q) return -1;
-    *p = q;
-    return 0;
-}
-
-static int grow_i32(int32_t **p, size_t count)
-{
-    int32_t *q = realloc(*p, (count ? count : 1) * sizeof *q);
-    if (!q) return -1;
-    *p = q;
-    return 0;
-}
-
-/* Room for the pair arrays of `pairs` pairs. 0 / -1. */
-static int reserve_pairs(cy_state *c, size_t pairs)
-{
-    if (pairs <= c->pair_cap) return 0;
-    pairs += pairs / 4 + 64;
-    cy_pair *q = realloc(c->pair, pairs * sizeof *q);
-    if (!q) return -1;
-    c->pair = q;
-    float *l = realloc(c->lap, pairs * sizeof *l);
-    if (!l) return -1;
-    c->lap = l;
-    c->pair_cap = pairs;
-    return 0;
-}
-
-/* Compact offsets of the grid's neighbour lists (serial: a prefix sum) and room for them. */
-static int pair_offsets(stf_fluid *f)
-{
-    cy_state *c = f->cy;
-    size_t total = 0;
-    const int32_t *count = c->dense ? c->nbc : f->grid.count;
-    for (int i = 0; i < f->n; i++) {
-        c->off[i] = (int32_t)total;
-        total += (size_t)count[i];
-    }
-    if (total > INT32_MAX) return -1;
-    c->off[f->n] = (int32_t)total;
-    return reserve_pairs(c, total);
 }
 
 static int reserve(stf_fluid *f, int n)
@@ -423,666 +138,6 @@ static int reserve(stf_fluid *f, int n)
     c->hit = hit;
     c->cap = n;
     return 0;
-}
-
-/* ----------------------------------------------------------------------------- walls */
-
-/* Wall sums at distance d from a flat wall: density and the normal gradient magnitude. */
-static void wall_at(const cy_state *c, double d, double h, double *rho, double *grad, double *lap,
-                    double *cn, double *ct)
-{
-    double u = d / h * WALL_BINS;
-    if (u < 0) u = 0;
-    if (u >= WALL_BINS) {
-        *rho = *grad = *lap = *cn = *ct = 0;
-        return;
-    }
-    int b = (int)u;
-    double t = u - b;
-    *rho = (1 - t) * c->wall_rho[b] + t * c->wall_rho[b + 1];
-    *grad = (1 - t) * c->wall_grad[b] + t * c->wall_grad[b + 1];
-    *lap = (1 - t) * c->wall_lap[b] + t * c->wall_lap[b + 1];
-    *cn = (1 - t) * c->wall_cn[b] + t * c->wall_cn[b + 1];
-    *ct = (1 - t) * c->wall_ct[b] + t * c->wall_ct[b + 1];
-}
-
-/* Collider k's wall term at particle i: returns 1 within h, with G = sum_b m grad W_ib
- * (pointing into the solid), the density it adds, the viscous terms (Morris' lap, the
- * central form's block M, row-major) and the solid's velocity there. A container
- * counts as its five faces, each a half-space of lattice (its signed distance alone would
- * show a particle near an edge only the nearer face: too little density there, and a jump
- * where the nearer face changes). */
-static int wall_term(const stf_fluid *f, const collider *col, int i, double G[3], double *rho,
-                     double *lap, double M[9], double vb[3])
-{
-    const double *x = f->x + 3 * i;
-    double h = f->h;
-    if (col->bound >= 0) {
-        double d2 = 0;
-        for (int a = 0; a < 3; a++) d2 += (x[a] - col->pos[a]) * (x[a] - col->pos[a]);
-        if (d2 > (col->bound + h) * (col->bound + h)) return 0;
-    }
-    double fd[5], fn[5][3];
-    int faces = collider_container_faces(col, x, fd, fn), hit = 0;
-    if (faces == 0) {
-        double d = collider_sdf(col, x, fn[0]);
-        if (d >= h) return 0;
-        fd[0] = d;
-        faces = 1;
-    }
-    *rho = *lap = 0;
-    G[0] = G[1] = G[2] = 0;
-    memset(M, 0, 9 * sizeof *M);
-    for (int k = 0; k < faces; k++) {
-        if (fd[k] >= h) continue;
-        double r, g, l, cn, ct;
-        wall_at(f->cy, fd[k], h, &r, &g, &l, &cn, &ct);
-        *rho += r;
-        *lap += l;
-        for (int a = 0; a < 3; a++)
-            for (int b = 0; b < 3; b++)
-                M[3 * a + b] += (cn - ct) * fn[k][a] * fn[k][b] + (a == b ? ct : 0);
-        for (int a = 0; a < 3; a++) G[a] -= g * fn[k][a];
-        hit = 1;
-    }
-    /* container edges: faces 0/1 (x) and 2/3 (y) meet each other and the floor (4) */
-    static const int pairs[8][2] = {{0, 2}, {0, 3}, {1, 2}, {1, 3}, {0, 4}, {1, 4}, {2, 4}, {3, 4}};
-    for (int e = 0; faces == 5 && e < 8; e++) {
-        int p = pairs[e][0], q = pairs[e][1];
-        if (fd[p] >= h || fd[q] >= h) continue;
-        double r, g1, g2, l, qc[4];
-        quad_at(f->cy, fd[p], fd[q], h, &r, &g1, &g2, &l, qc);
-        *rho -= r;
-        *lap -= l;
-        /* c11 n1 n1^T + c22 n2 n2^T + c12 (n1 n2^T + n2 n1^T) + cee (I - n1 n1^T - n2 n2^T) */
-        const double *n1 = fn[p], *n2 = fn[q];
-        for (int a = 0; a < 3; a++)
-            for (int b = 0; b < 3; b++)
-                M[3 * a + b] -= (qc[0] - qc[3]) * n1[a] * n1[b] + (qc[1] - qc[3]) * n2[a] * n2[b] +
-                                qc[2] * (n1[a] * n2[b] + n2[a] * n1[b]) + (a == b ? qc[3] : 0);
-        for (int a = 0; a < 3; a++) G[a] += g1 * fn[p][a] + g2 * fn[q][a];
-    }
-    if (hit) collider_velocity_at(col, x, vb);
-    return hit;
-}
-
-static void walls_one(stf_fluid *f, int i)
-{
-    cy_state *c = f->cy;
-    double *gw = c->gw + 3 * i, *wv = c->wv + 9 * i, *lwv = c->lwv + 3 * i, rho = 0, q = 0, lw = 0;
-    double *lwm = c->lwm + 9 * i;
-    int central = f->def.cy.viscosity_form == STF_VISCOSITY_CENTRAL;
-    memset(gw, 0, 3 * sizeof *gw);
-    memset(wv, 0, 9 * sizeof *wv);
-    memset(lwv, 0, 3 * sizeof *lwv);
-    memset(lwm, 0, 9 * sizeof *lwm);
-    for (int k = 0; k < f->ncolliders; k++) {
-        double G[3] = {0, 0, 0}, r = 0, lap = 0, M[9], vb[3] = {0, 0, 0};
-        if (!wall_term(f, &f->colliders[k], i, G, &r, &lap, M, vb)) continue;
-        rho += r;
-        lw += lap;
-        if (central)
-            for (int a = 0; a < 3; a++)
-                for (int b = 0; b < 3; b++) {
-                    lwm[3 * a + b] += M[3 * a + b];
-                    lwv[a] += M[3 * a + b] * vb[b];
-                }
-        else
-            for (int a = 0; a < 3; a++) lwv[a] += lap * vb[a];
-        for (int a = 0; a < 3; a++) {
-            gw[a] += G[a];
-            q += vb[a] * G[a];
-            for (int b = 0; b < 3; b++) wv[3 * a + b] += vb[a] * G[b];
-        }
-    }
-    c->rho[i] = rho; /* the fluid's part is added in density_one */
-    c->qw[i] = q;
-    c->lw[i] = lw;
-}
-
-/* ------------------------------------------------------------------ neighbour search */
-
-/* Every particle's neighbours within h (r < h), for a fluid that is not periodic: the
- * particles are counting-sorted into a dense grid of cells over their bounding box, h across
- * (y, z) and h / XCELLS along x, with a sorted copy of their positions. Around a particle,
- * the 3 x 3 rows (along x) are visited, each over the cells within the sphere's chord at the
- * row's distance from the particle: one contiguous run of the sorted copy (no hashing, no
- * indirection, the distance tests stream). At the dam break that is 100 candidates per
- * particle against 216 in 27 cells of size h (and 5% less time, A/B); cells of h/2 in all
- * three directions (25 rows) cost more: such a cell holds about one particle at h = 2
- * spacings. The lists are rebuilt every substep (at the dam break's speeds the Verlet lists
- * of the shared grid were rebuilt at 97% of the substeps anyway). The list order (row by
- * row, cell by cell, particle index within a cell) depends on the positions only: the same
- * for any thread count. Returns 1 (c->nbt, c->nbc hold the lists), 0 when the box has too
- * many cells for the particles (far-flung particles: the shared hashed grid is used
- * instead), -1 out of memory. */
-#define XCELLS 4
-static int cy_neighbours(stf_fluid *f)
-{
-    cy_state *c = f->cy;
-    int n = f->n;
-    double h = f->h, h2 = h * h, reach2 = h2 * (1 + 1e-9); /* pruning a hair wider */
-    double inv[3] = {XCELLS / h, 1.0 / h, 1.0 / h}; /* cells of h/XCELLS along x, h across */
-    double lo0 = INFINITY, lo1 = INFINITY, lo2 = INFINITY;
-    double hi0 = -INFINITY, hi1 = -INFINITY, hi2 = -INFINITY;
-    const double *x = f->x;
-#pragma omp parallel for schedule(static) reduction(min : lo0, lo1, lo2)                           \
-    reduction(max : hi0, hi1, hi2)
-    for (int i = 0; i < n; i++) {
-        const double *p = x + 3 * i; /* positions are finite (fluid_check) */
-        lo0 = p[0] < lo0 ? p[0] : lo0, hi0 = p[0] > hi0 ? p[0] : hi0;
-        lo1 = p[1] < lo1 ? p[1] : lo1, hi1 = p[1] > hi1 ? p[1] : hi1;
-        lo2 = p[2] < lo2 ? p[2] : lo2, hi2 = p[2] > hi2 ? p[2] : hi2;
-    }
-    if (n == 0) return 0;
-    double lo[3] = {lo0, lo1, lo2}, span[3] = {hi0 - lo0, hi1 - lo1, hi2 - lo2};
-    int dim[3];
-    double cells = 1;
-    /* at most 16 cells per particle (+ 65536): a few spray particles far out make the box
-       large, and then the cells along x are coarsened (to h/2, then h) before giving up */
-    for (;;) {
-        cells = 1;
-        for (int a = 0; a < 3; a++) {
-            if (!(span[a] * inv[a] < 1e6)) return 0;
-            dim[a] = (int)floor(span[a] * inv[a]) + 1;
-            cells *= dim[a];
-        }
-        if (cells <= 16.0 * n + 65536) break;
-        if (inv[0] * h < 1.5) return 0;
-        inv[0] *= 0.5;
-    }
-    size_t ncell = (size_t)cells;
-    if (ncell + 1 > c->cell_cap) {
-        int32_t *cb = realloc(c->cstart, (ncell + 1) * sizeof *cb);
-        if (!cb) return -1;
-        c->cstart = cb;
-        c->cell_cap = ncell + 1;
-    }
-    int32_t *cst = c->cstart, *cellof = c->cellof, *sid = c->sid;
-#pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) {
-        int k[3];
-        for (int a = 0; a < 3; a++) {
-            int u = (int)((x[3 * i + a] - lo[a]) * inv[a]);
-            k[a] = u < 0 ? 0 : u >= dim[a] ? dim[a] - 1 : u;
-        }
-        cellof[i] = (k[2] * dim[1] + k[1]) * dim[0] + k[0];
-    }
-    /* counting sort (serial: stable, and short next to the search) */
-    memset(cst, 0, (ncell + 1) * sizeof *cst);
-    for (int i = 0; i < n; i++) cst[cellof[i] + 1]++;
-    for (size_t b = 0; b < ncell; b++) cst[b + 1] += cst[b];
-    for (int i = 0; i < n; i++) sid[cst[cellof[i]]++] = i;
-    for (size_t b = ncell; b > 0; b--) cst[b] = cst[b - 1];
-    cst[0] = 0;
-    double *sx = c->sx, *sy = sx + n, *sz = sy + n;
-#pragma omp parallel for schedule(static)
-    for (int k = 0; k < n; k++) {
-        int i = sid[k];
-        sx[k] = x[3 * i], sy[k] = x[3 * i + 1], sz[k] = x[3 * i + 2];
-    }
-    for (;;) {
-        int most = 0, stride = c->nbs;
-        /* in cell order: the particles of a cell scan the same runs, in cache */
-#pragma omp parallel for schedule(static) reduction(max : most)
-        for (int si = 0; si < n; si++) {
-            int i = sid[si];
-            int cell = cellof[i], ky = cell / dim[0] % dim[1],
-                kz = cell / dim[0] / dim[1];
-            double px = sx[si], py = sy[si], pz = sz[si];
-            int32_t *out = c->nbt + (size_t)i * (size_t)stride;
-            int cnt = 0, last = stride - 1;
-            for (int z = kz > 0 ? kz - 1 : 0; z <= kz + 1 && z < dim[2]; z++) {
-                /* distance from the particle to the layer of rows z (zero in its own) */
-                double dz = z < kz ? pz - (lo[2] + (z + 1) * h) : z > kz ? lo[2] + z * h - pz : 0;
-                dz = dz > 0 ? dz : 0;
-                for (int y = ky > 0 ? ky - 1 : 0; y <= ky + 1 && y < dim[1]; y++) {
-                    double dy = y < ky   ? py - (lo[1] + (y + 1) * h)
-                                : y > ky ? lo[1] + y * h - py
-                                         : 0;
-                    dy = dy > 0 ? dy : 0;
-                    double rest = reach2 - dy * dy - dz * dz;
-                    if (rest <= 0) continue;
-                    /* the row's cells within the sphere's chord at that distance */
-                    double rx = sqrt(rest) + 1e-9 * h;
-                    double u0 = (px - rx - lo[0]) * inv[0], u1 = (px + rx - lo[0]) * inv[0];
-                    int x0 = u0 > 0 ? (int)u0 : 0, x1 = u1 < dim[0] - 1 ? (int)u1 : dim[0] - 1;
-                    if (x1 < x0) continue;
-                    int row = (z * dim[1] + y) * dim[0];
-                    for (int k = cst[row + x0], e = cst[row + x1 + 1]; k < e; k++) {
-                        double ex = sx[k] - px, ey = sy[k] - py, ez = sz[k] - pz;
-                        /* branch-free append; past the stride the last slot is
-                           overwritten, and the lists are widened and redone */
-                        out[cnt < last ? cnt : last] = sid[k];
-                        cnt += (ex * ex + ey * ey + ez * ez < h2) & (sid[k] != i);
-                    }
-                }
-            }
-            c->nbc[i] = cnt;
-            most = cnt > most ? cnt : most;
-        }
-        if (most < c->nbs) return 1;
-        /* compressed regions: widen every list and redo (rare, deterministic) */
-        int wide = most + most / 2 + 1;
-        if (grow_i32(&c->nbt, (size_t)c->cap * (size_t)wide)) return -1;
-        c->nbs = wide;
-    }
-}
-
-/* ---------------------------------------------------------------- density and factors */
-
-/* rho_i (Eq. 6), the pair gradients, and S_i of Eq. 20-21. The pairs go in chunks of
- * CHUNK: their vectors, then the kernel terms (kernel_terms), then the sums in list order. */
-#define CHUNK 64
-
-/* The kernel terms of nk pair vectors R: W, S = (dW/dr) / r (0 at r = 0) and
- * L = S r^2 / (r^2 + 0.01 h^2). The cubic spline and its derivative inline and branch-free
- * (the nearest neighbours sit at q = 1/2 where kernel_w and kernel_dw switch branch): with
- * a = max(1 - q, 0), b = max(1/2 - q, 0), W = kw (2 a^3 - 8 b^3), dW/dr = kd (4 b^2 - a^2).
- * no-trapping-math lets gcc turn the selects into masks and the loop into vector code (two
- * square roots and divisions at a time); no floating-point trap is enabled anywhere. */
-#if defined(__GNUC__) && !defined(__clang__)
-#define NO_TRAPPING_MATH __attribute__((optimize("no-trapping-math")))
-#else
-#define NO_TRAPPING_MATH
-#endif
-static NO_TRAPPING_MATH void
-kernel_terms(int nk, double R[3][CHUNK], double *restrict W, double *restrict S,
-             double *restrict L, double h)
-{
-    double ih = 1.0 / h, kw = 8.0 / (PI * h * h * h), kd = 48.0 / (PI * h * h * h * h);
-    double eps = 0.01 * h * h, tiny = 1e-12 * h;
-    for (int k = 0; k < nk; k++) {
-        double l2 = R[0][k] * R[0][k] + R[1][k] * R[1][k] + R[2][k] * R[2][k];
-        double len = sqrt(l2), q = len * ih, qa = 1 - q, qb = 0.5 - q;
-        qa = qa < 0 ? 0 : qa;
-        qb = qb < 0 ? 0 : qb;
-        double far = len < tiny ? tiny : len;
-        double inv = 1.0 / (far * (l2 + eps));
-        W[k] = kw * (2 * qa * qa * qa - 8 * qb * qb * qb);
-        S[k] = len < tiny ? 0 : kd * (4 * qb * qb - qa * qa) * inv * (l2 + eps);
-        L[k] = S[k] * l2 * len * inv;
-    }
-}
-
-static void density_one(stf_fluid *f, int i)
-{
-    cy_state *c = f->cy;
-    double h = f->h, m = f->mass, rho = c->rho[i] + m * kernel_w(0, h);
-    double sum[3] = {c->gw[3 * i], c->gw[3 * i + 1], c->gw[3 * i + 2]}, sq = 0;
-    const int32_t *nb = c->dense ? c->nbt + (size_t)i * (size_t)c->nbs
-                                 : grid_row(&f->grid, i);
-    int cnt = c->dense ? c->nbc[i] : f->grid.count[i];
-    cy_pair *pr = c->pair + c->off[i];
-    float *lp = c->lap + c->off[i];
-    int periodic = is_periodic(f), central = f->def.cy.viscosity_form == STF_VISCOSITY_CENTRAL;
-    double eps = 0.01 * h * h;
-    const double *x = f->x, *xi = x + 3 * i;
-    double R[3][CHUNK], W[CHUNK], S[CHUNK], L[CHUNK];
-    for (int k0 = 0; k0 < cnt; k0 += CHUNK) {
-        int nk = cnt - k0 < CHUNK ? cnt - k0 : CHUNK;
-        for (int k = 0; k < nk; k++) {
-            int j = nb[k0 + k];
-            double r[3];
-            if (periodic) pair_vec(f, i, j, r);
-            else
-                for (int e = 0; e < 3; e++) r[e] = xi[e] - x[3 * j + e];
-            R[0][k] = r[0], R[1][k] = r[1], R[2][k] = r[2];
-        }
-        kernel_terms(nk, R, W, S, L, h);
-        for (int k = 0; k < nk; k++) {
-            double s = S[k], l2 = 0;
-            rho += m * W[k];
-            pr[k0 + k].j = nb[k0 + k];
-            for (int a3 = 0; a3 < 3; a3++) {
-                pr[k0 + k].g[a3] = (float)(s * R[a3][k]);
-                sum[a3] += m * s * R[a3][k];
-                l2 += R[a3][k] * R[a3][k];
-            }
-            sq += m * m * s * s * l2;
-            lp[k0 + k] = !central ? (float)(m * L[k])
-                         : s != 0 ? (float)(5 * m / (s * (l2 + eps))) : 0.0f;
-        }
-    }
-    c->rho[i] = rho;
-    c->irho[i] = 1.0 / rho;
-    c->S[i] = sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2] + sq;
-}
-
-/* ------------------------------------------------------------- pressure (Algorithm 1) */
-
-/* rho*_i (Eq. 19) from the velocities v. */
-static double predict_one(const stf_fluid *f, const double *v, int i, double dt)
-{
-    const cy_state *c = f->cy;
-    double d0 = 0, d1 = 0, d2 = 0, m = f->mass;
-    const cy_pair *pr = c->pair + c->off[i], *end = c->pair + c->off[i + 1];
-    const double *vi = v + 3 * i;
-    for (; pr < end; pr++) {
-        const double *vj = v + 3 * pr->j;
-        d0 += (vi[0] - vj[0]) * pr->g[0];
-        d1 += (vi[1] - vj[1]) * pr->g[1];
-        d2 += (vi[2] - vj[2]) * pr->g[2];
-    }
-    const double *G = c->gw + 3 * i;
-    double div = m * (d0 + d1 + d2) + vi[0] * G[0] + vi[1] * G[1] + vi[2] * G[2] - c->qw[i];
-    return c->rho[i] + dt * div;
-}
-
-/* rho*_i from v, and the next iteration's k_i from it (Eq. 21; only compression is
- * corrected, scaled by the relaxation omega), with kappa_i / rho_i. */
-static void predict_kappa_one(const stf_fluid *f, const double *v, int i, double dt, double omega)
-{
-    cy_state *c = f->cy;
-    double rs = predict_one(f, v, i, dt);
-    c->rhostar[i] = rs;
-    double k = c->S[i] > 0 ? (rs - c->rho0) * c->rho[i] / (dt * dt * c->S[i]) : 0;
-    c->kappa[i] = k > 0 ? omega * k : 0;
-    c->kr[i] = c->kappa[i] * c->irho[i];
-}
-
-/* Algorithm 1's last loop for the current kappa: v_i += -dt sum_j m (k_i/rho_i + k_j/rho_j)
- * grad W_ij (+ the walls), and the particle's total. Only kappa / rho of the neighbours is
- * read, so v_i is updated in place. */
-static void pressure_dv_one(stf_fluid *f, int i, double dt)
-{
-    cy_state *c = f->cy;
-    double m = f->mass, ki = c->kr[i], d[3] = {0, 0, 0};
-    const cy_pair *pr = c->pair + c->off[i], *end = c->pair + c->off[i + 1];
-    const double *kr = c->kr;
-    for (; pr < end; pr++) {
-        double w = ki + kr[pr->j];
-        d[0] += w * pr->g[0];
-        d[1] += w * pr->g[1];
-        d[2] += w * pr->g[2];
-    }
-    for (int a = 0; a < 3; a++) f->v[3 * i + a] -= dt * (m * d[a] + ki * c->gw[3 * i + a]);
-    c->ktot[i] += c->kappa[i];
-}
-
-static double mean_error(const stf_fluid *f)
-{
-    const cy_state *c = f->cy;
-    double sum = 0; /* serial: the same result for any thread count */
-    for (int i = 0; i < f->n; i++) sum += c->rhostar[i] > c->rho0 ? c->rhostar[i] - c->rho0 : 0;
-    return f->n > 0 ? sum / f->n / c->rho0 : 0;
-}
-
-/* Algorithm 1: k_i from Eq. 21 for every particle (Jacobi), applied together, until the mean
- * compression is below eta and at least min_pressure_iterations were done. The paper starts
- * each step from zero pressure. With warm_start w > 0 the step first applies w times the
- * last step's total (a pressure: ktot does not depend on dt, so it carries over a change of
- * substep length), then the iterations only add pressure where there is compression, as
- * from zero. The part not carried (1 - w) keeps an over-pressure from persisting; letting
- * the iterations lower the pressure instead was tried earlier and made a fluid at rest
- * unstable within 0.4 s. relaxation (omega) scales each iteration's k_i: Jacobi with the full
- * k_i overshoots where the neighbours are compressed too (their corrections add to the
- * particle's own), and an overshoot becomes expansion that is not corrected (no tension) and
- * falls back as a harder compression: at dt = 5 ms the 1 m dam break column blew up from its
- * floor layer with omega = 1 and ran with omega = 0.5 and warm_start 0.5 (measured).
- * kappa, kr and ktot were set by the density pass (the warm start, or zero). Each iteration
- * is two neighbour passes: the velocity change, then rho* with the next k_i. */
-static void pressure_project(stf_fluid *f, double dt, double w)
-{
-    cy_state *c = f->cy;
-    int n = f->n, iter = 0;
-    double err, omega = f->def.cy.relaxation > 0 ? f->def.cy.relaxation : 1.0;
-    if (w > 0) {
-#pragma omp parallel for schedule(static)
-        for (int i = 0; i < n; i++) pressure_dv_one(f, i, dt);
-    }
-#pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) predict_kappa_one(f, f->v, i, dt, omega);
-    do {
-#pragma omp parallel for schedule(static)
-        for (int i = 0; i < n; i++) pressure_dv_one(f, i, dt);
-#pragma omp parallel for schedule(static)
-        for (int i = 0; i < n; i++) predict_kappa_one(f, f->v, i, dt, omega);
-        err = mean_error(f);
-        iter++;
-    } while ((err > f->def.cy.eta || iter < f->def.cy.min_pressure_iterations) &&
-             iter < f->def.cy.max_pressure_iterations);
-    c->warm_n = n;
-    c->stats.pressure_iterations = iter;
-    c->stats.density_error = err;
-}
-
-/* ------------------------------------------------------------------------ viscosity */
-
-/* D_i = L_i + L_i^T, L_i = (1/rho_i) [sum_j m (u_j - u_i) (x) grad W_ij + (v_w - u_i) (x) G_w]
- * (Eq. 9, 22). */
-static void strain_one(const stf_fluid *f, const double *u, int i, double d[6])
-{
-    const cy_state *c = f->cy;
-    double L[9] = {0}, m = f->mass;
-    const cy_pair *pr = c->pair + c->off[i], *end = c->pair + c->off[i + 1];
-    const double *ui = u + 3 * i;
-    for (; pr < end; pr++) {
-        const double *uj = u + 3 * pr->j;
-        for (int a = 0; a < 3; a++) {
-            double du = m * (uj[a] - ui[a]);
-            for (int b = 0; b < 3; b++) L[3 * a + b] += du * pr->g[b];
-        }
-    }
-    const double *G = c->gw + 3 * i;
-    for (int a = 0; a < 3; a++)
-        for (int b = 0; b < 3; b++)
-            L[3 * a + b] += c->wv[9 * i + 3 * a + b] - ui[a] * G[b];
-    double inv = c->irho[i];
-    d[0] = 2 * L[0] * inv;
-    d[1] = 2 * L[4] * inv;
-    d[2] = 2 * L[8] * inv;
-    d[3] = (L[1] + L[3]) * inv;
-    d[4] = (L[2] + L[6]) * inv;
-    d[5] = (L[5] + L[7]) * inv;
-}
-
-/* Morris' pair factor (mu_i + mu_b) / (rho_i rho_b) with a wall's lattice particles b (at
- * rho0, with the particle's own nu_i): the viscous force and its reaction on the collider. */
-static double wall_visc(const cy_state *c, int i)
-{
-    return c->nu[i] * (c->rho[i] + c->rho0) / (c->rho[i] * c->rho0);
-}
-
-/* Viscous acceleration of the velocity field u: Morris et al.'s (1997) SPH Laplacian with
- * the pair viscosity (mu_i + mu_j), mu = rho nu,
- *   a_i = sum_j m (mu_i + mu_j) / (rho_i rho_j) (r_ij . grad W_ij) / (r^2 + 0.01 h^2) (u_i - u_j),
- * plus the walls (mirror particles of viscosity mu_i moving with Morris' mirror velocity);
- * the walls' own velocity enters only when with_walls (the affine part of the operator).
- * This replaces the divergence of the SPH stress of Eq. 10 (see the file comment). */
-static void viscous_one(const stf_fluid *f, const double *u, int i, int with_walls, double *out)
-{
-    const cy_state *c = f->cy;
-    double a[3] = {0, 0, 0}, mi = c->mu[i];
-    const cy_pair *pr = c->pair + c->off[i];
-    const float *lp = c->lap + c->off[i];
-    const double *ui = u + 3 * i;
-    const double *mu = c->mu, *irho = c->irho;
-    if (f->def.cy.viscosity_form == STF_VISCOSITY_CENTRAL) {
-        /* a_i = sum_j (d + 2) m (mu_i + mu_j) / (rho_i rho_j) F_ij (x_ij . u_ij) x_ij / r^2
-           (F as Morris'), i.e. lp g (g . u_ij) with g = grad W_ij along x_ij */
-        for (int k = 0, cnt = c->off[i + 1] - c->off[i]; k < cnt; k++) {
-            int j = pr[k].j;
-            const double *uj = u + 3 * j;
-            const float *g = pr[k].g;
-            double gu = g[0] * (ui[0] - uj[0]) + g[1] * (ui[1] - uj[1]) + g[2] * (ui[2] - uj[2]);
-            double w = lp[k] * (mi + mu[j]) * irho[j] * gu; /* / rho_i below */
-            for (int e = 0; e < 3; e++) a[e] += w * g[e];
-        }
-        const double *M = c->lwm + 9 * i;
-        double ww = wall_visc(c, i);
-        for (int e = 0; e < 3; e++)
-            out[3 * i + e] = a[e] * irho[i] +
-                             ww * (M[3 * e] * ui[0] + M[3 * e + 1] * ui[1] + M[3 * e + 2] * ui[2] -
-                                   (with_walls ? c->lwv[3 * i + e] : 0));
-        return;
-    }
-    for (int k = 0, cnt = c->off[i + 1] - c->off[i]; k < cnt; k++) {
-        int j = pr[k].j;
-        const double *uj = u + 3 * j;
-        double w = lp[k] * (mi + mu[j]) * irho[j]; /* / rho_i below */
-        for (int e = 0; e < 3; e++) a[e] += w * (ui[e] - uj[e]);
-    }
-    for (int e = 0; e < 3; e++) a[e] *= c->irho[i];
-    double ww = wall_visc(c, i);
-    for (int e = 0; e < 3; e++)
-        out[3 * i + e] = a[e] + ww * (c->lw[i] * ui[e] - (with_walls ? c->lwv[3 * i + e] : 0));
-}
-
-/* out = u - dt * (viscous acceleration of u without the walls' velocity). */
-static void apply_system(stf_fluid *f, const double *u, double dt, double *out)
-{
-    int n = f->n;
-#pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) {
-        viscous_one(f, u, i, 0, out);
-        for (int e = 3 * i; e < 3 * i + 3; e++) out[e] = u[e] - dt * out[e];
-    }
-}
-
-static double dot(const double *a, const double *b, int n)
-{
-    double s = 0; /* serial: deterministic for any thread count */
-    for (int i = 0; i < n; i++) s += a[i] * b[i];
-    return s;
-}
-
-/* The viscosity of the step from the strain rate of v (Eq. 3), in c->nu. */
-static void viscosity_field(stf_fluid *f, const double *v)
-{
-    cy_state *c = f->cy;
-    int n = f->n;
-    const stf_cy_def *cd = &f->def.cy;
-    if (cd->n == 1 || cd->K == 0 || cd->mu0 == cd->mu_inf) { /* Eq. 3 is constant: Newtonian */
-        double nu = stf_cy_viscosity(cd, 0);
-#pragma omp parallel for schedule(static)
-        for (int i = 0; i < n; i++) {
-            c->nu[i] = nu;
-            c->mu[i] = c->rho[i] * nu;
-        }
-        c->stats.min_viscosity = c->stats.max_viscosity = nu;
-        return;
-    }
-#pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) {
-        double d[6];
-        strain_one(f, v, i, d);
-        double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] +
-                    2 * (d[3] * d[3] + d[4] * d[4] + d[5] * d[5]);
-        c->nu[i] = stf_cy_viscosity(&f->def.cy, sqrt(0.5 * dd));
-        c->mu[i] = c->rho[i] * c->nu[i];
-    }
-    double lo = n ? c->nu[0] : 0, hi = lo;
-    for (int i = 1; i < n; i++) {
-        lo = c->nu[i] < lo ? c->nu[i] : lo;
-        hi = c->nu[i] > hi ? c->nu[i] : hi;
-    }
-    c->stats.min_viscosity = lo;
-    c->stats.max_viscosity = hi;
-}
-
-/* Viscosity step from v** (in f->v): explicit, or implicit by conjugate gradients on
- * (I - dt A) dv = dt a(v**), dv the velocity change, A the viscous operator. The walls'
- * impulses are those of a(u), u (left in c->r for wall_reactions) v** (explicit) or
- * v** + dv (implicit). Explicit: v = v** + dt a(u), whose pair terms cancel exactly, so the
- * fluid's momentum changes only by the walls' part, which the colliders get back. Implicit:
- * dv = dt a(u) - res, res = b - (I - dt A) dv the CG residual (up to cg_tolerance |b|), and
- * v = u + mean(res):
- * the residual's mean is taken out, so the momentum balances as well (with dv alone, the
- * fluid and a body lost 5e-4 of the momentum they exchanged at the default tolerance,
- * test_cy), while a stiff mode keeps the CG solution's small error (v = v** + dt a(u)
- * would multiply it by dt A). */
-static void viscosity_solve(stf_fluid *f, double dt)
-{
-    cy_state *c = f->cy;
-    int n = f->n, N = 3 * n;
-    viscosity_field(f, f->v);
-#pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) viscous_one(f, f->v, i, 1, c->b);
-    c->stats.viscosity_iterations = 0;
-    c->stats.viscosity_residual = 0;
-    memcpy(c->r, f->v, (size_t)N * sizeof *c->r); /* u = v** */
-    if (f->def.cy.viscosity_solver == STF_VISCOSITY_EXPLICIT) {
-#pragma omp parallel for schedule(static)
-        for (int i = 0; i < N; i++) f->v[i] += dt * c->b[i];
-        return;
-    }
-#pragma omp parallel for schedule(static)
-    for (int i = 0; i < N; i++) c->b[i] *= dt;
-    double bb = dot(c->b, c->b, N);
-    if (bb > 0) {
-        double *x = c->dv, *r = c->r, *p = c->p, *Ap = c->Ap;
-        memcpy(x, c->b, (size_t)N * sizeof *x); /* start from the explicit step */
-        apply_system(f, x, dt, Ap);
-        for (int i = 0; i < N; i++) r[i] = c->b[i] - Ap[i];
-        memcpy(p, r, (size_t)N * sizeof *p);
-        double rr = dot(r, r, N), tol2 = f->def.cy.cg_tolerance * f->def.cy.cg_tolerance * bb;
-        int it = 0;
-        while (rr > tol2 && it < f->def.cy.max_cg_iterations) {
-            apply_system(f, p, dt, Ap);
-            double pAp = dot(p, Ap, N);
-            if (!(pAp > 0)) break;
-            double al = rr / pAp;
-#pragma omp parallel for schedule(static)
-            for (int i = 0; i < N; i++) {
-                x[i] += al * p[i];
-                r[i] -= al * Ap[i];
-            }
-            double rr2 = dot(r, r, N);
-#pragma omp parallel for schedule(static)
-            for (int i = 0; i < N; i++) p[i] = r[i] + rr2 / rr * p[i];
-            rr = rr2;
-            it++;
-        }
-        c->stats.viscosity_iterations = it;
-        c->stats.viscosity_residual = sqrt(rr / bb);
-        /* the true residual's mean (serial sums: any thread count), then u and v = u + mean */
-        apply_system(f, x, dt, Ap);
-        double mean[3] = {0, 0, 0};
-        for (int i = 0; i < n; i++)
-            for (int e = 0; e < 3; e++) mean[e] += c->b[3 * i + e] - Ap[3 * i + e];
-        for (int e = 0; e < 3; e++) mean[e] /= n;
-#pragma omp parallel for schedule(static)
-        for (int i = 0; i < n; i++)
-            for (int e = 3 * i; e < 3 * i + 3; e++) {
-                r[e] = f->v[e] + x[e];
-                f->v[e] = r[e] + mean[e - 3 * i];
-            }
-    }
-}
-
-/* ------------------------------------------------------------------ wall reactions */
-
-/* The impulses the walls gave the particles during the step go back to the colliders:
- * pressure -dt (sum k_i / rho_i) G and viscous dt (the wall part of viscous_one), the latter
- * with the velocity u the viscous step evaluated (c->r, viscosity_solve). */
-static void wall_reactions(stf_fluid *f, double dt)
-{
-    cy_state *c = f->cy;
-    int n = f->n;
-    for (int k = 0; k < f->ncolliders; k++) {
-        collider *col = &f->colliders[k];
-#pragma omp parallel for schedule(static)
-        for (int i = 0; i < n; i++) {
-            double G[3] = {0, 0, 0}, rho = 0, lap = 0, M[9], vb[3] = {0, 0, 0};
-            c->hit[i] = (char)wall_term(f, col, i, G, &rho, &lap, M, vb);
-            if (!c->hit[i]) continue;
-            double ki = c->ktot[i] / c->rho[i];
-            if (f->def.cy.viscosity_form == STF_VISCOSITY_CENTRAL) {
-                double ww = wall_visc(c, i), du[3];
-                for (int a = 0; a < 3; a++) du[a] = c->r[3 * i + a] - vb[a];
-                for (int a = 0; a < 3; a++) {
-                    double Mu = M[3 * a] * du[0] + M[3 * a + 1] * du[1] + M[3 * a + 2] * du[2];
-                    c->dv[3 * i + a] = f->mass * dt * (ww * Mu - ki * G[a]);
-                }
-                continue;
-            }
-            double ww = wall_visc(c, i) * lap;
-            for (int a = 0; a < 3; a++)
-                c->dv[3 * i + a] = f->mass * dt * (ww * (c->r[3 * i + a] - vb[a]) - ki * G[a]);
-        }
-        collider_take_reaction(col, c->dv, f->x, c->hit, n);
-    }
 }
 
 /* ------------------------------------------------------------------------- the step */
@@ -1122,7 +177,7 @@ static int cy_substep(stf_fluid *f, double dt)
     if (dense < 0) goto oom;
     c->dense = dense;
     if (!dense && grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
-    if (pair_offsets(f) != 0) goto oom;
+    if (cy_pair_offsets(f) != 0) goto oom;
     f->stage_seconds[STAGE_GRID] += omp_get_wtime() - t0;
     t0 = omp_get_wtime();
     /* one pass: walls, density and S_i, the warm start's k_i, gravity (Eq. 11), and the
@@ -1132,8 +187,8 @@ static int cy_substep(stf_fluid *f, double dt)
         for (int a = 0; a < 3; a++) g[a] = f->def.gravity[a];
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) {
-        walls_one(f, i);
-        density_one(f, i);
+        cy_walls_one(f, i);
+        cy_density_one(f, i);
         c->kappa[i] = w * c->ktot[i];
         c->kr[i] = c->kappa[i] * c->irho[i];
         c->ktot[i] = 0;
@@ -1142,14 +197,14 @@ static int cy_substep(stf_fluid *f, double dt)
             f->xprev[3 * i + a] = f->x[3 * i + a];
         }
     }
-    pressure_project(f, dt, w);
+    cy_pressure_project(f, dt, w);
     f->stage_seconds[STAGE_PRESSURE] += omp_get_wtime() - t0;
     /* positions are unchanged so far (xprev = x, set in the density pass): the checks look
        at the velocities */
     if (fluid_check(f, "carreau_yasuda pressure projection")) return -1;
     t0 = omp_get_wtime();
-    viscosity_solve(f, dt);
-    wall_reactions(f, dt);
+    cy_viscosity_solve(f, dt);
+    cy_wall_reactions(f, dt);
     f->stage_seconds[STAGE_VISCOSITY] += omp_get_wtime() - t0;
     if (fluid_check(f, f->def.cy.viscosity_solver == STF_VISCOSITY_EXPLICIT
                            ? "carreau_yasuda viscosity (explicit)"
@@ -1176,13 +231,15 @@ oom:
 /* One coupled step of length dt: a single substep, or with cfl > 0 substeps of equal length
  * within dt whose count is set, at each substep's start, by the CFL condition
  * dt_sub <= min(dt_max, cfl h / v_max) on the remaining time (so the last one is not a
- * sliver). The
- * colliders' impulses add up over the substeps (they were cleared by stf_fluid_step). */
+ * sliver). The colliders' impulses add up over the substeps (they were cleared by
+ * stf_fluid_step), the statistics too (stf_solver_stats_merge, as stf_sim_step adds up the
+ * fluid steps of a split coupled step). */
 int cy_step(stf_fluid *f, double dt)
 {
     cy_state *c = f->cy;
     stf_solver_stats *st = &c->stats;
     double cfl = f->def.cy.cfl, left = dt, t_end = f->time + dt;
+    /* no substep yet: the first merge takes the first substep's statistics as they are */
     st->substeps = 0;
     st->dt_min = dt;
     st->dt_max = 0;
@@ -1204,20 +261,15 @@ int cy_step(stf_fluid *f, double dt)
            and a thin skin (0.02 h) halves the candidates to search and filter */
         f->grid.skin = 4 * vmax * sub > 0.25 * f->h ? 0.02 : 0;
         if (cy_substep(f, sub) != 0) return -1;
-        st->substeps++;
-        st->dt_min = sub < st->dt_min ? sub : st->dt_min;
-        st->dt_max = sub > st->dt_max ? sub : st->dt_max;
-        double cn = vmax * sub / f->h;
-        st->cfl_number = cn > st->cfl_number ? cn : st->cfl_number;
-        st->pressure_iterations_total += st->pressure_iterations;
-        st->viscosity_iterations_total += st->viscosity_iterations;
-        if (st->pressure_iterations > st->pressure_iterations_max)
-            st->pressure_iterations_max = st->pressure_iterations;
-        if (st->viscosity_iterations > st->viscosity_iterations_max)
-            st->viscosity_iterations_max = st->viscosity_iterations;
-        st->density_error_sum += st->density_error;
-        st->density_error_max = st->density_error > st->density_error_max ? st->density_error
-                                                                          : st->density_error_max;
+        /* the substep's statistics (its own fields as the stages left them in st) */
+        stf_solver_stats one = *st;
+        one.substeps = 1;
+        one.dt_min = one.dt_max = sub;
+        one.cfl_number = vmax * sub / f->h;
+        one.pressure_iterations_total = one.pressure_iterations_max = st->pressure_iterations;
+        one.viscosity_iterations_total = one.viscosity_iterations_max = st->viscosity_iterations;
+        one.density_error_sum = one.density_error_max = st->density_error;
+        stf_solver_stats_merge(st, &one);
         left -= sub;
     }
     f->time = t_end; /* no round-off drift from the substeps */
@@ -1231,6 +283,30 @@ void stf_fluid_solver_stats(const stf_fluid *f, stf_solver_stats *st)
 {
     if (f->cy) *st = f->cy->stats;
     else memset(st, 0, sizeof *st);
+}
+
+/* The one merge of substep statistics: cy_step adds each CFL substep to the step's, and
+ * stf_sim_step (../ode_glue/stf_sim.c) each fluid step to the coupled step's. */
+void stf_solver_stats_merge(stf_solver_stats *acc, const stf_solver_stats *part)
+{
+    if (acc->substeps == 0) { /* empty */
+        *acc = *part;
+        return;
+    }
+    stf_solver_stats sum = *part; /* the last substep's own fields, and the sums: */
+    sum.substeps += acc->substeps;
+    sum.pressure_iterations_total += acc->pressure_iterations_total;
+    sum.viscosity_iterations_total += acc->viscosity_iterations_total;
+    sum.density_error_sum += acc->density_error_sum;
+#define STF_MAXF(F) sum.F = acc->F > sum.F ? acc->F : sum.F
+    STF_MAXF(density_error_max);
+    STF_MAXF(pressure_iterations_max);
+    STF_MAXF(viscosity_iterations_max);
+    STF_MAXF(cfl_number);
+    STF_MAXF(dt_max);
+#undef STF_MAXF
+    sum.dt_min = acc->dt_min < sum.dt_min ? acc->dt_min : sum.dt_min;
+    *acc = sum;
 }
 
 void stf_fluid_get_pressures(const stf_fluid *f, double *p)

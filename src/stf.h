@@ -339,6 +339,12 @@ STF_API int stf_fluid_history_steps(const stf_fluid *f);
 STF_API int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len);
 /* The Carreau-Yasuda solver's statistics of the last step. */
 STF_API void stf_fluid_solver_stats(const stf_fluid *f, stf_solver_stats *st);
+/* Adds to acc the statistics part of the substeps that follow acc's (one substep's, or a
+ * whole step's): substeps and the *_total and *_sum fields summed, the *_max fields,
+ * cfl_number and dt_max the largest, dt_min the smallest; the per-substep fields (those
+ * above substeps) become part's, the last substep's. An acc with substeps 0 is empty: it
+ * becomes part. */
+STF_API void stf_solver_stats_merge(stf_solver_stats *acc, const stf_solver_stats *part);
 /* Per particle: pressure (Pa) of the last step's projection; zeros for the Clavet model. */
 STF_API void stf_fluid_get_pressures(const stf_fluid *f, double *p);
 /* The Carreau-Yasuda viscosity (Eq. 3) at shear rate g (1/s), m^2/s. */

@@ -29,7 +29,7 @@ def parameters(f):
 
 
 def viscosity(cy, g):
-    """Eq. 3 of the second paper (as src/cy.c: stf_cy_viscosity)."""
+    """Eq. 3 of the second paper (as src/cy_viscosity.c: stf_cy_viscosity)."""
     t = (cy["K"] * g) ** cy["alpha"]
     return cy["mu_inf"] + (cy["mu0"] - cy["mu_inf"]) * (1 + t) ** ((cy["n"] - 1) / cy["alpha"])
 

@@ -1,4 +1,4 @@
-/* cy_validate.c - physics validation of the Carreau-Yasuda model (src/cy.c).
+/* cy_validate.c - physics validation of the Carreau-Yasuda model (src/cy*.c).
  *
  *   cy_validate hydrostatic   pressure at depth vs rho g h; mean density error below eta
  *   cy_validate poiseuille    plane Poiseuille flow (periodic channel, body force) for a

@@ -1,0 +1,266 @@
+/* cy_walls.c - solid walls of the Carreau-Yasuda model. The second paper samples walls with
+ * boundary particles; here every collider is a signed distance, and its wall counts as a
+ * half-space of lattice particles (our choice, below). This file holds the walls' share of
+ * Eq. 6 (density), Eq. 20-21 (the factor S_i), Algorithm 1 (the gradient sum G the pressure
+ * pushes along), Eq. 9 and 22 (the strain rate sees the solid's velocity) and the viscous
+ * force (Morris' mirror velocity, the central form's block; see cy_viscosity.c): tabulated by
+ * distance once (cy_tables, with the rest density rho0 of the lattice the blocks are filled
+ * with), summed over the colliders at each particle every substep (cy_walls_one), and the
+ * impulses they gave the particles returned to the colliders (cy_wall_reactions).
+ *
+ * Walls (any collider: container, ODE bodies) are a half-space of lattice particles at
+ * rest density that move with the solid (tabulated by distance, as the Clavet model's
+ * mirror particles in pressure.c): they add to density and S_i, take part in the
+ * projection with the particle's own k_i, in the strain rate with the solid's velocity, and
+ * in the viscous force with Morris' mirror velocity (zero relative velocity on the surface:
+ * no slip). Every velocity change they cause is an impulse the collider receives back,
+ * which is how ODE bodies feel buoyancy and drag. Where two colliders meet, both count
+ * (the corner's lattice twice); a container's own faces count one by one, with the
+ * quarter-space behind each edge subtracted once (the triple corner's octant is then
+ * missing once: at least 0.87 h from a particle, a small term). */
+#include "cy_internal.h"
+
+#include <math.h>
+#include <omp.h>
+#include <string.h>
+
+/* Rest density: the kernel sum of the cubic lattice the blocks are filled with, so a block
+ * starts at rho0; and the wall tables (a half-space of that lattice, first layer half a
+ * spacing inside the solid, so a particle half a spacing from a wall sees the lattice). */
+void cy_tables(stf_fluid *f, cy_state *c)
+{
+    double s = f->def.spacing, h = f->h, m = f->mass;
+    int k = (int)ceil(h / s) + 1;
+    double sum = 0;
+    for (int a = -k; a <= k; a++)
+        for (int b = -k; b <= k; b++)
+            for (int e = -k; e <= k; e++)
+                sum += kernel_w(s * sqrt((double)(a * a + b * b + e * e)), h);
+    c->rho0 = m * sum;
+    for (int bin = 0; bin <= WALL_BINS; bin++) {
+        double d = h * bin / WALL_BINS, rho = 0, grad = 0, lap = 0, cn = 0, ct = 0;
+        double dd = d > 0.05 * s ? d : 0.05 * s;
+        for (int layer = 0; layer <= k; layer++)
+            for (int a = -k; a <= k; a++)
+                for (int e = -k; e <= k; e++) {
+                    double dz = d + s * (0.5 + layer), dx = a * s, dy = e * s;
+                    double r = sqrt(dx * dx + dy * dy + dz * dz);
+                    if (r >= h) continue;
+                    rho += m * kernel_w(r, h);
+                    grad += -m * kernel_dw(r, h) * dz / r;
+                    /* Morris et al. (1997): the wall particle b moves with v_w - (d_b/d)
+                       (v_i - v_w), d_b its depth in the solid, so the velocity is zero on the
+                       surface itself; d_b/d capped at 1.5 */
+                    double depth = s * (0.5 + layer), ratio = depth / dd;
+                    double l = m * kernel_dw(r, h) * r / (r * r + 0.01 * h * h) *
+                               (1 + (ratio < 1.5 ? ratio : 1.5));
+                    lap += l;
+                    /* the central form's block: (d + 2) l x x^T / r^2, normal and one
+                       tangential component (the two tangential ones are equal) */
+                    cn += 5 * l * dz * dz / (r * r);
+                    ct += 5 * l * 0.5 * (dx * dx + dy * dy) / (r * r);
+                }
+        c->wall_lap[bin] = lap;
+        c->wall_cn[bin] = cn;
+        c->wall_ct[bin] = ct;
+        c->wall_rho[bin] = rho;
+        c->wall_grad[bin] = grad;
+    }
+    for (int b1 = 0; b1 <= WALL_BINS; b1++)
+        for (int b2 = 0; b2 <= WALL_BINS; b2++) {
+            double d1 = h * b1 / WALL_BINS, d2 = h * b2 / WALL_BINS;
+            double rho = 0, g1 = 0, g2 = 0, lap = 0, c11 = 0, c22 = 0, c12 = 0, cee = 0;
+            for (int l1 = 0; l1 <= k; l1++)
+                for (int l2 = 0; l2 <= k; l2++)
+                    for (int a = -k; a <= k; a++) {
+                        double z1 = d1 + s * (0.5 + l1), z2 = d2 + s * (0.5 + l2), e = a * s;
+                        double r = sqrt(z1 * z1 + z2 * z2 + e * e);
+                        if (r >= h) continue;
+                        rho += m * kernel_w(r, h);
+                        g1 += -m * kernel_dw(r, h) * z1 / r;
+                        g2 += -m * kernel_dw(r, h) * z2 / r;
+                        /* mirror velocity ratio at its cap (the corner is deep in the solid) */
+                        double l = m * kernel_dw(r, h) * r / (r * r + 0.01 * h * h) * 2.5;
+                        lap += l;
+                        c11 += 5 * l * z1 * z1 / (r * r);
+                        c22 += 5 * l * z2 * z2 / (r * r);
+                        c12 += 5 * l * z1 * z2 / (r * r);
+                        cee += 5 * l * e * e / (r * r);
+                    }
+            c->quad_rho[b1][b2] = rho;
+            c->quad_g1[b1][b2] = g1;
+            c->quad_g2[b1][b2] = g2;
+            c->quad_lap[b1][b2] = lap;
+            c->quad_c11[b1][b2] = c11;
+            c->quad_c22[b1][b2] = c22;
+            c->quad_c12[b1][b2] = c12;
+            c->quad_cee[b1][b2] = cee;
+        }
+}
+
+/* The quarter-space terms at distances d1, d2 (< h) from two perpendicular faces (bilinear). */
+static void quad_at(const cy_state *c, double d1, double d2, double h, double *rho, double *g1,
+                    double *g2, double *lap, double qc[4])
+{
+    double u = d1 / h * WALL_BINS, w = d2 / h * WALL_BINS;
+    u = u < 0 ? 0 : u > WALL_BINS - 1e-9 ? WALL_BINS - 1e-9 : u;
+    w = w < 0 ? 0 : w > WALL_BINS - 1e-9 ? WALL_BINS - 1e-9 : w;
+    int i = (int)u, j = (int)w;
+    double t = u - i, q = w - j;
+    double c00 = (1 - t) * (1 - q), c10 = t * (1 - q), c01 = (1 - t) * q, c11 = t * q;
+#define BILIN(T) (c00 * c->T[i][j] + c10 * c->T[i + 1][j] + c01 * c->T[i][j + 1] + c11 * c->T[i + 1][j + 1])
+    *rho = BILIN(quad_rho);
+    *g1 = BILIN(quad_g1);
+    *g2 = BILIN(quad_g2);
+    *lap = BILIN(quad_lap);
+    qc[0] = BILIN(quad_c11);
+    qc[1] = BILIN(quad_c22);
+    qc[2] = BILIN(quad_c12);
+    qc[3] = BILIN(quad_cee);
+#undef BILIN
+}
+
+/* Wall sums at distance d from a flat wall: density and the normal gradient magnitude. */
+static void wall_at(const cy_state *c, double d, double h, double *rho, double *grad, double *lap,
+                    double *cn, double *ct)
+{
+    double u = d / h * WALL_BINS;
+    if (u < 0) u = 0;
+    if (u >= WALL_BINS) {
+        *rho = *grad = *lap = *cn = *ct = 0;
+        return;
+    }
+    int b = (int)u;
+    double t = u - b;
+    *rho = (1 - t) * c->wall_rho[b] + t * c->wall_rho[b + 1];
+    *grad = (1 - t) * c->wall_grad[b] + t * c->wall_grad[b + 1];
+    *lap = (1 - t) * c->wall_lap[b] + t * c->wall_lap[b + 1];
+    *cn = (1 - t) * c->wall_cn[b] + t * c->wall_cn[b + 1];
+    *ct = (1 - t) * c->wall_ct[b] + t * c->wall_ct[b + 1];
+}
+
+/* Collider k's wall term at particle i: returns 1 within h, with G = sum_b m grad W_ib
+ * (pointing into the solid), the density it adds, the viscous terms (Morris' lap, the
+ * central form's block M, row-major) and the solid's velocity there. A container
+ * counts as its five faces, each a half-space of lattice (its signed distance alone would
+ * show a particle near an edge only the nearer face: too little density there, and a jump
+ * where the nearer face changes). */
+static int wall_term(const stf_fluid *f, const collider *col, int i, double G[3], double *rho,
+                     double *lap, double M[9], double vb[3])
+{
+    const double *x = f->x + 3 * i;
+    double h = f->h;
+    if (col->bound >= 0) {
+        double d2 = 0;
+        for (int a = 0; a < 3; a++) d2 += (x[a] - col->pos[a]) * (x[a] - col->pos[a]);
+        if (d2 > (col->bound + h) * (col->bound + h)) return 0;
+    }
+    double fd[5], fn[5][3];
+    int faces = collider_container_faces(col, x, fd, fn), hit = 0;
+    if (faces == 0) {
+        double d = collider_sdf(col, x, fn[0]);
+        if (d >= h) return 0;
+        fd[0] = d;
+        faces = 1;
+    }
+    *rho = *lap = 0;
+    G[0] = G[1] = G[2] = 0;
+    memset(M, 0, 9 * sizeof *M);
+    for (int k = 0; k < faces; k++) {
+        if (fd[k] >= h) continue;
+        double r, g, l, cn, ct;
+        wall_at(f->cy, fd[k], h, &r, &g, &l, &cn, &ct);
+        *rho += r;
+        *lap += l;
+        for (int a = 0; a < 3; a++)
+            for (int b = 0; b < 3; b++)
+                M[3 * a + b] += (cn - ct) * fn[k][a] * fn[k][b] + (a == b ? ct : 0);
+        for (int a = 0; a < 3; a++) G[a] -= g * fn[k][a];
+        hit = 1;
+    }
+    /* container edges: faces 0/1 (x) and 2/3 (y) meet each other and the floor (4) */
+    static const int pairs[8][2] = {{0, 2}, {0, 3}, {1, 2}, {1, 3}, {0, 4}, {1, 4}, {2, 4}, {3, 4}};
+    for (int e = 0; faces == 5 && e < 8; e++) {
+        int p = pairs[e][0], q = pairs[e][1];
+        if (fd[p] >= h || fd[q] >= h) continue;
+        double r, g1, g2, l, qc[4];
+        quad_at(f->cy, fd[p], fd[q], h, &r, &g1, &g2, &l, qc);
+        *rho -= r;
+        *lap -= l;
+        /* c11 n1 n1^T + c22 n2 n2^T + c12 (n1 n2^T + n2 n1^T) + cee (I - n1 n1^T - n2 n2^T) */
+        const double *n1 = fn[p], *n2 = fn[q];
+        for (int a = 0; a < 3; a++)
+            for (int b = 0; b < 3; b++)
+                M[3 * a + b] -= (qc[0] - qc[3]) * n1[a] * n1[b] + (qc[1] - qc[3]) * n2[a] * n2[b] +
+                                qc[2] * (n1[a] * n2[b] + n2[a] * n1[b]) + (a == b ? qc[3] : 0);
+        for (int a = 0; a < 3; a++) G[a] += g1 * fn[p][a] + g2 * fn[q][a];
+    }
+    if (hit) collider_velocity_at(col, x, vb);
+    return hit;
+}
+
+void cy_walls_one(stf_fluid *f, int i)
+{
+    cy_state *c = f->cy;
+    double *gw = c->gw + 3 * i, *wv = c->wv + 9 * i, *lwv = c->lwv + 3 * i, rho = 0, q = 0, lw = 0;
+    double *lwm = c->lwm + 9 * i;
+    int central = f->def.cy.viscosity_form == STF_VISCOSITY_CENTRAL;
+    memset(gw, 0, 3 * sizeof *gw);
+    memset(wv, 0, 9 * sizeof *wv);
+    memset(lwv, 0, 3 * sizeof *lwv);
+    memset(lwm, 0, 9 * sizeof *lwm);
+    for (int k = 0; k < f->ncolliders; k++) {
+        double G[3] = {0, 0, 0}, r = 0, lap = 0, M[9], vb[3] = {0, 0, 0};
+        if (!wall_term(f, &f->colliders[k], i, G, &r, &lap, M, vb)) continue;
+        rho += r;
+        lw += lap;
+        if (central)
+            for (int a = 0; a < 3; a++)
+                for (int b = 0; b < 3; b++) {
+                    lwm[3 * a + b] += M[3 * a + b];
+                    lwv[a] += M[3 * a + b] * vb[b];
+                }
+        else
+            for (int a = 0; a < 3; a++) lwv[a] += lap * vb[a];
+        for (int a = 0; a < 3; a++) {
+            gw[a] += G[a];
+            q += vb[a] * G[a];
+            for (int b = 0; b < 3; b++) wv[3 * a + b] += vb[a] * G[b];
+        }
+    }
+    c->rho[i] = rho; /* the fluid's part is added in density_one */
+    c->qw[i] = q;
+    c->lw[i] = lw;
+}
+
+/* The impulses the walls gave the particles during the step go back to the colliders:
+ * pressure -dt (sum k_i / rho_i) G and viscous dt (the wall part of viscous_one), the latter
+ * with the velocity u the viscous step evaluated (c->r, viscosity_solve). */
+void cy_wall_reactions(stf_fluid *f, double dt)
+{
+    cy_state *c = f->cy;
+    int n = f->n;
+    for (int k = 0; k < f->ncolliders; k++) {
+        collider *col = &f->colliders[k];
+#pragma omp parallel for schedule(static)
+        for (int i = 0; i < n; i++) {
+            double G[3] = {0, 0, 0}, rho = 0, lap = 0, M[9], vb[3] = {0, 0, 0};
+            c->hit[i] = (char)wall_term(f, col, i, G, &rho, &lap, M, vb);
+            if (!c->hit[i]) continue;
+            double ki = c->ktot[i] / c->rho[i];
+            if (f->def.cy.viscosity_form == STF_VISCOSITY_CENTRAL) {
+                double ww = wall_visc(c, i), du[3];
+                for (int a = 0; a < 3; a++) du[a] = c->r[3 * i + a] - vb[a];
+                for (int a = 0; a < 3; a++) {
+                    double Mu = M[3 * a] * du[0] + M[3 * a + 1] * du[1] + M[3 * a + 2] * du[2];
+                    c->dv[3 * i + a] = f->mass * dt * (ww * Mu - ki * G[a]);
+                }
+                continue;
+            }
+            double ww = wall_visc(c, i) * lap;
+            for (int a = 0; a < 3; a++)
+                c->dv[3 * i + a] = f->mass * dt * (ww * (c->r[3 * i + a] - vb[a]) - ki * G[a]);
+        }
+        collider_take_reaction(col, c->dv, f->x, c->hit, n);
+    }
+}
