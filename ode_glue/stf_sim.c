@@ -478,7 +478,7 @@ int stf_sim_step(stf_sim *s)
             stf_solver_stats st;
             stf_fluid_solver_stats(s->fluid, &st);
             if (st.substeps > 0) taken = st.substeps, lo = st.dt_min, hi = st.dt_max;
-            stf_solver_stats_merge(acc, &st); /* the same merge as cy_step's substeps */
+            stf_solver_stats_merge(acc, &st); /* the same merge as stf_cy_step's substeps */
         }
         s->substeps += taken;
         if (s->dt_min == 0 || lo < s->dt_min) s->dt_min = lo;

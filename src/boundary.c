@@ -16,10 +16,10 @@ static int stick_one(stf_fluid *f, const collider *c, int i, double dt, double *
     const double *x = f->x + 3 * i;
     double *v = f->v + 3 * i;
     double band = f->def.spacing, nrm[3];
-    double d = collider_sdf(c, x, nrm);
+    double d = stf_collider_sdf(c, x, nrm);
     if (d >= band) return 0;
     double vb[3], vrel[3];
-    collider_velocity_at(c, x, vb);
+    stf_collider_velocity_at(c, x, vb);
     for (int a = 0; a < 3; a++) vrel[a] = v[a] - vb[a];
     double vn = vrel[0] * nrm[0] + vrel[1] * nrm[1] + vrel[2] * nrm[2];
     double kh = f->khist_mean ? f->khist_mean[i] : 0.0;
@@ -34,7 +34,7 @@ static int stick_one(stf_fluid *f, const collider *c, int i, double dt, double *
     return 1;
 }
 
-void boundary_stick(stf_fluid *f, double dt)
+void stf_boundary_stick(stf_fluid *f, double dt)
 {
     int n = f->n;
     for (int k = 0; k < f->ncolliders; k++) {
@@ -43,6 +43,6 @@ void boundary_stick(stf_fluid *f, double dt)
         char *hit = f->hit;
 #pragma omp parallel for schedule(static)
         for (int i = 0; i < n; i++) hit[i] = (char)stick_one(f, c, i, dt, f->dx);
-        collider_take_reaction(c, f->dx, f->x, hit, n);
+        stf_collider_take_reaction(c, f->dx, f->x, hit, n);
     }
 }

@@ -338,7 +338,7 @@ static double sdf_convex(const collider *c, const double x[3], double n[3])
     return -depth;
 }
 
-double collider_sdf(const collider *c, const double x[3], double n[3])
+double stf_collider_sdf(const collider *c, const double x[3], double n[3])
 {
     double p[3], nl[3], d;
     switch (c->def.shape) {
@@ -375,7 +375,7 @@ double collider_sdf(const collider *c, const double x[3], double n[3])
     return d;
 }
 
-int collider_container_faces(const collider *c, const double x[3], double d[5], double n[5][3])
+int stf_collider_container_faces(const collider *c, const double x[3], double d[5], double n[5][3])
 {
     if (c->def.shape != STF_SHAPE_CONTAINER) return 0;
     double p[3];
@@ -393,7 +393,7 @@ int collider_container_faces(const collider *c, const double x[3], double d[5], 
     return 5;
 }
 
-void collider_velocity_at(const collider *c, const double x[3], double v[3])
+void stf_collider_velocity_at(const collider *c, const double x[3], double v[3])
 {
     double r[3] = {x[0] - c->pos[0], x[1] - c->pos[1], x[2] - c->pos[2]};
     const double *w = c->angvel;
@@ -423,7 +423,7 @@ static double shape_bound(const stf_collider_def *d, const double *points)
     }
 }
 
-int collider_init(collider *c, const stf_collider_def *def, char *err, size_t errlen)
+int stf_collider_init(collider *c, const stf_collider_def *def, char *err, size_t errlen)
 {
     memset(c, 0, sizeof *c);
     c->def = *def;
@@ -477,13 +477,13 @@ int collider_init(collider *c, const stf_collider_def *def, char *err, size_t er
     return 0;
 }
 
-void collider_free(collider *c)
+void stf_collider_free(collider *c)
 {
     free(c->points);
     c->points = NULL;
 }
 
-void collider_take_reaction(collider *c, const double *imp, const double *x, const char *hit,
+void stf_collider_take_reaction(collider *c, const double *imp, const double *x, const char *hit,
                             int n)
 {
     double J[3] = {0, 0, 0}, M[3] = {0, 0, 0};
@@ -518,7 +518,7 @@ static int collide_one(stf_fluid *f, const collider *c, int i, double dt, double
     double *x = f->x + 3 * i;
     double rp = 0.5 * f->def.spacing, nrm[3];
     if (!maybe_near(c, x, rp)) return 0;
-    double d = collider_sdf(c, x, nrm);
+    double d = stf_collider_sdf(c, x, nrm);
     if (d >= rp) return 0;
     /* The penetration is removed from the position only (xprev moves along), so it adds no
        velocity: a particle squeezed between two solids is not shot out (it was, at 30 m/s,
@@ -531,7 +531,7 @@ static int collide_one(stf_fluid *f, const collider *c, int i, double dt, double
     double old[3] = {x[0], x[1], x[2]};
     double jn = 0; /* normal velocity change, m/s */
     double vb[3], vrel[3];
-    collider_velocity_at(c, x, vb);
+    stf_collider_velocity_at(c, x, vb);
     for (int a = 0; a < 3; a++) vrel[a] = (x[a] - f->xprev[3 * i + a]) / dt - vb[a];
     double vn = vrel[0] * nrm[0] + vrel[1] * nrm[1] + vrel[2] * nrm[2];
     if (vn < 0) { /* still approaching (a wall moving into the fluid): stop it */
@@ -582,7 +582,7 @@ static void take_collisions(collider *c, const stf_fluid *f, double dt)
     for (int a = 0; a < 3; a++) c->impulse[a] += J[a], c->moment[a] += M[a], c->shift[a] += S[a];
 }
 
-void collide_all(stf_fluid *f, double dt)
+void stf_collide_all(stf_fluid *f, double dt)
 {
     int n = f->n;
     for (int k = 0; k < f->ncolliders; k++) {
@@ -598,7 +598,7 @@ int stf_collider_extent(const stf_collider_def *def, double *inradius, double *b
 {
     char err[128];
     collider c;
-    if (collider_init(&c, def, err, sizeof err) != 0) return -1;
+    if (stf_collider_init(&c, def, err, sizeof err) != 0) return -1;
     *bound = c.bound;
     const double *h = def->half;
     switch (def->shape) {
@@ -609,11 +609,11 @@ int stf_collider_extent(const stf_collider_def *def, double *inradius, double *b
     case STF_SHAPE_CONVEX: {
         /* the depth of the origin inside the hull; 0 when the hull does not hold it */
         double n[3], origin[3] = {0, 0, 0};
-        *inradius = fmax(0.0, -collider_sdf(&c, origin, n));
+        *inradius = fmax(0.0, -stf_collider_sdf(&c, origin, n));
         break;
     }
     default: *inradius = -1;
     }
-    collider_free(&c);
+    stf_collider_free(&c);
     return *bound < 0 ? -1 : 0;
 }

@@ -20,24 +20,24 @@ typedef struct collider {
     int two_sided;    /* container: its walls are solid from outside too (stf_wall_two_sided) */
 } collider;
 
-int collider_init(collider *c, const stf_collider_def *def, char *err, size_t errlen);
-void collider_free(collider *c);
+int stf_collider_init(collider *c, const stf_collider_def *def, char *err, size_t errlen);
+void stf_collider_free(collider *c);
 /* Signed distance from x to the surface (m, > 0 outside the solid, may be a large positive
  * number when far) and the unit normal pointing out of the solid. */
-double collider_sdf(const collider *c, const double x[3], double n[3]);
+double stf_collider_sdf(const collider *c, const double x[3], double n[3]);
 /* A container's five inner faces (4 walls, floor) as planes: their signed distances from x
  * (m, > 0 inside) and inward unit normals. Returns 5, or 0 when c is not a container or x is
  * outside its shell. */
-int collider_container_faces(const collider *c, const double x[3], double d[5], double n[5][3]);
+int stf_collider_container_faces(const collider *c, const double x[3], double d[5], double n[5][3]);
 /* Velocity of the collider's material at world point x. */
-void collider_velocity_at(const collider *c, const double x[3], double v[3]);
+void stf_collider_velocity_at(const collider *c, const double x[3], double v[3]);
 /* Adds the per-particle impulses imp (3n, N s, on the particles at positions x) to the
  * collider as their reaction, in particle order so the sum does not depend on threads.
  * x is where the impulse changes the particle's angular momentum: its position for a
  * velocity change, its position at the step's start (xprev) for a position change D in the
  * predict-relax stages (the step ends at x = xprev + dt v, so m x × v moves by
  * xprev × m D / dt). */
-void collider_take_reaction(collider *c, const double *imp, const double *x, const char *hit,
+void stf_collider_take_reaction(collider *c, const double *imp, const double *x, const char *hit,
                             int n);
 
 #endif

@@ -3,10 +3,10 @@
  * Non-Newtonian Fluids", Symmetry 9(2), 26, 2017: Eq. 3, 9-26, Algorithms 1 and 2).
  *
  * This file: the model's set-up (its parameters, the solver's arrays), one step of
- * Algorithm 2 (cy_substep) and the CFL substeps of a coupled step (cy_step), the solver's
+ * Algorithm 2 (cy_substep) and the CFL substeps of a coupled step (stf_cy_step), the solver's
  * statistics, its effective parameters and its checkpoints. The stages of a step, each in
  * its own file (the solver's state is in cy_internal.h):
- *   1. neighbours (cy_neighbours.c; the shared grid if periodic), densities
+ *   1. neighbours (stf_cy_neighbours.c; the shared grid if periodic), densities
  *      rho_i = sum_j m W_ij + walls (Eq. 6) and the per-particle factors S_i of Eq. 20-21
  *      (cy_density.c; the walls' part, cy_walls.c);
  *   2. v* = v + dt g (Eq. 11; here, in the same pass);
@@ -28,8 +28,8 @@
  * - the shear rate, Eq. 24, the viscous force (Morris' Laplacian, not Eq. 10) and its
  *   central form: cy_viscosity.c;
  * - walls as half-spaces of lattice particles, not boundary particles: cy_walls.c;
- * - the neighbour search: cy_neighbours.c;
- * - here: cfl splits a step into CFL-limited substeps (cy_step).
+ * - the neighbour search: stf_cy_neighbours.c;
+ * - here: cfl splits a step into CFL-limited substeps (stf_cy_step).
  */
 #include "cy_internal.h"
 #include "state.h"
@@ -48,7 +48,7 @@
         return -1;                                                                            \
     } while (0)
 
-int cy_check_def(const stf_fluid_def *d, char *err, size_t errlen)
+int stf_cy_check_def(const stf_fluid_def *d, char *err, size_t errlen)
 {
     const stf_cy_def *c = &d->cy;
     if (d->effects & ~(unsigned)STF_EFFECT_GRAVITY)
@@ -91,11 +91,11 @@ int cy_check_def(const stf_fluid_def *d, char *err, size_t errlen)
 
 /* ----------------------------------------------------------------------- creation */
 
-int cy_create(stf_fluid *f)
+int stf_cy_create(stf_fluid *f)
 {
     cy_state *c = calloc(1, sizeof *c);
     if (!c) return -1;
-    cy_tables(f, c);
+    stf_cy_tables(f, c);
     f->cy = c;
     for (int a = 0; a < 3; a++) {
         f->grid.period[a] = f->def.periodic[a];
@@ -104,7 +104,7 @@ int cy_create(stf_fluid *f)
     return 0;
 }
 
-void cy_free(stf_fluid *f)
+void stf_cy_free(stf_fluid *f)
 {
     cy_state *c = f->cy;
     if (!c) return;
@@ -163,21 +163,21 @@ static int cy_substep(stf_fluid *f, double dt)
     /* Particles are re-sorted along the Morton curve (memory locality) every
        reorder_interval substeps (with the shared grid of a periodic fluid: when its
        candidates are rebuilt anyway, at most that often, as in stf_fluid_step). */
-    if (grid_due(&f->grid, f->x, n, f->h) && f->steps >= f->next_reorder) {
-        if (grid_sort(&f->grid, f->x, n, f->h) != 0) goto oom;
+    if (stf_grid_due(&f->grid, f->x, n, f->h) && f->steps >= f->next_reorder) {
+        if (stf_grid_sort(&f->grid, f->x, n, f->h) != 0) goto oom;
         if (c->warm_n == n) { /* the warm start's pressures follow their particles */
             for (int i = 0; i < n; i++) c->kappa[i] = c->ktot[f->grid.order[i]];
             memcpy(c->ktot, c->kappa, (size_t)n * sizeof *c->ktot);
         }
-        if (fluid_permute(f, f->grid.order) != 0) goto oom;
+        if (stf_fluid_permute(f, f->grid.order) != 0) goto oom;
         f->next_reorder = f->steps + f->reorder_interval;
     }
     if (reserve(f, n) != 0) goto oom;
-    int dense = is_periodic(f) ? 0 : cy_neighbours(f);
+    int dense = is_periodic(f) ? 0 : stf_cy_neighbours(f);
     if (dense < 0) goto oom;
     c->dense = dense;
-    if (!dense && grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
-    if (cy_pair_offsets(f) != 0) goto oom;
+    if (!dense && stf_grid_build(&f->grid, f->x, n, f->h) != 0) goto oom;
+    if (stf_cy_pair_offsets(f) != 0) goto oom;
     f->stage_seconds[STAGE_GRID] += omp_get_wtime() - t0;
     t0 = omp_get_wtime();
     /* one pass: walls, density and S_i, the warm start's k_i, gravity (Eq. 11), and the
@@ -187,8 +187,8 @@ static int cy_substep(stf_fluid *f, double dt)
         for (int a = 0; a < 3; a++) g[a] = f->def.gravity[a];
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) {
-        cy_walls_one(f, i);
-        cy_density_one(f, i);
+        stf_cy_walls_one(f, i);
+        stf_cy_density_one(f, i);
         c->kappa[i] = w * c->ktot[i];
         c->kr[i] = c->kappa[i] * c->irho[i];
         c->ktot[i] = 0;
@@ -197,27 +197,27 @@ static int cy_substep(stf_fluid *f, double dt)
             f->xprev[3 * i + a] = f->x[3 * i + a];
         }
     }
-    cy_pressure_project(f, dt, w);
+    stf_cy_pressure_project(f, dt, w);
     f->stage_seconds[STAGE_PRESSURE] += omp_get_wtime() - t0;
     /* positions are unchanged so far (xprev = x, set in the density pass): the checks look
        at the velocities */
-    if (fluid_check(f, "carreau_yasuda pressure projection")) return -1;
+    if (stf_fluid_check(f, "carreau_yasuda pressure projection")) return -1;
     t0 = omp_get_wtime();
-    cy_viscosity_solve(f, dt);
-    cy_wall_reactions(f, dt);
+    stf_cy_viscosity_solve(f, dt);
+    stf_cy_wall_reactions(f, dt);
     f->stage_seconds[STAGE_VISCOSITY] += omp_get_wtime() - t0;
-    if (fluid_check(f, f->def.cy.viscosity_solver == STF_VISCOSITY_EXPLICIT
+    if (stf_fluid_check(f, f->def.cy.viscosity_solver == STF_VISCOSITY_EXPLICIT
                            ? "carreau_yasuda viscosity (explicit)"
                            : "carreau_yasuda viscosity (implicit)"))
         return -1;
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < 3 * n; i++) f->x[i] += dt * f->v[i];
     t0 = omp_get_wtime();
-    collide_all(f, dt);
+    stf_collide_all(f, dt);
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < 3 * n; i++) f->v[i] = (f->x[i] - f->xprev[i]) / dt;
     f->stage_seconds[STAGE_COLLIDE] += omp_get_wtime() - t0;
-    if (fluid_check(f, "collisions")) return -1;
+    if (stf_fluid_check(f, "collisions")) return -1;
     wrap_positions(f);
     f->time += dt;
     f->steps++;
@@ -234,7 +234,7 @@ oom:
  * sliver). The colliders' impulses add up over the substeps (they were cleared by
  * stf_fluid_step), the statistics too (stf_solver_stats_merge, as stf_sim_step adds up the
  * fluid steps of a split coupled step). */
-int cy_step(stf_fluid *f, double dt)
+int stf_cy_step(stf_fluid *f, double dt)
 {
     cy_state *c = f->cy;
     stf_solver_stats *st = &c->stats;
@@ -285,7 +285,7 @@ void stf_fluid_solver_stats(const stf_fluid *f, stf_solver_stats *st)
     else memset(st, 0, sizeof *st);
 }
 
-/* The one merge of substep statistics: cy_step adds each CFL substep to the step's, and
+/* The one merge of substep statistics: stf_cy_step adds each CFL substep to the step's, and
  * stf_sim_step (../ode_glue/stf_sim.c) each fluid step to the coupled step's. */
 void stf_solver_stats_merge(stf_solver_stats *acc, const stf_solver_stats *part)
 {
@@ -318,7 +318,7 @@ void stf_fluid_get_pressures(const stf_fluid *f, double *p)
 
 double stf_fluid_cy_rest_density(const stf_fluid *f) { return f->cy ? f->cy->rho0 : 0.0; }
 
-int cy_describe(const stf_fluid *f, char *buf, size_t len)
+int stf_cy_describe(const stf_fluid *f, char *buf, size_t len)
 {
     const stf_cy_def *c = &f->def.cy;
     const double *per = f->def.periodic, *o = f->def.periodic_origin;
@@ -347,7 +347,7 @@ int cy_describe(const stf_fluid *f, char *buf, size_t len)
 
 /* The warm start's pressures (ktot) and densities carry over steps; everything else is
  * recomputed by each substep before it is read. */
-int cy_save_state(const stf_fluid *f, stf_state *s)
+int stf_cy_save_state(const stf_fluid *f, stf_state *s)
 {
     const cy_state *c = f->cy;
     int n = c->cap >= f->n ? f->n : 0; /* no array before the first step */
@@ -360,7 +360,7 @@ int cy_save_state(const stf_fluid *f, stf_state *s)
     return s->failed ? -1 : 0;
 }
 
-int cy_load_state(stf_fluid *f, const stf_state *s, char *err, size_t errlen)
+int stf_cy_load_state(stf_fluid *f, const stf_state *s, char *err, size_t errlen)
 {
     cy_state *c = f->cy;
     int64_t warm_n, n;

@@ -55,7 +55,7 @@ kernel_terms(int nk, double R[3][CHUNK], double *restrict W, double *restrict S,
     }
 }
 
-void cy_density_one(stf_fluid *f, int i)
+void stf_cy_density_one(stf_fluid *f, int i)
 {
     cy_state *c = f->cy;
     double h = f->h, m = f->mass, rho = c->rho[i] + m * kernel_w(0, h);

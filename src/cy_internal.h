@@ -3,7 +3,7 @@
  * (Zhang, Ban, Wang, Liu, Symmetry 2017; the citation is at the top of cy.c):
  *   cy.c            set-up, the step (Algorithm 2) and its CFL substeps, statistics,
  *                   checkpoints;
- *   cy_neighbours.c the neighbour search of a non-periodic fluid and the compact pair lists;
+ *   stf_cy_neighbours.c the neighbour search of a non-periodic fluid and the compact pair lists;
  *   cy_density.c    the density (Eq. 6), S_i (Eq. 20-21), the pairs' gradients and weights;
  *   cy_pressure.c   the pressure projection (Algorithm 1, Eq. 19-21);
  *   cy_viscosity.c  the strain rate and the viscosity (Eq. 3, 9, 22), the viscous step,
@@ -65,7 +65,7 @@ typedef struct cy_state {
     double *kr;          /* n: kappa_i / rho_i of the current iteration, m^5/(kg s^2) */
     double *irho;        /* n: 1 / rho_i */
     double *mu;          /* n: rho_i nu_i, dynamic viscosity, Pa s */
-    /* The neighbour search of a non-periodic fluid (cy_neighbours): a dense grid of cells
+    /* The neighbour search of a non-periodic fluid (stf_cy_neighbours): a dense grid of cells
        (h across, h / XCELLS along x) over the particles' bounding box, the particles
        counting-sorted into it */
     int32_t *cstart;     /* ncell + 1: first sorted entry of each cell */
@@ -132,30 +132,30 @@ static inline int grow_i32(int32_t **p, size_t count)
     return 0;
 }
 
-/* cy_neighbours.c: this substep's neighbour lists of a non-periodic fluid, in c->nbt, c->nbc
+/* stf_cy_neighbours.c: this substep's neighbour lists of a non-periodic fluid, in c->nbt, c->nbc
  * (returns 1; 0: the particles are too far-flung, use the shared grid; -1: out of memory);
  * then the compact pair offsets of whichever lists c->dense names, with room for the pairs
  * (0 / -1). */
-int cy_neighbours(stf_fluid *f);
-int cy_pair_offsets(stf_fluid *f);
+int stf_cy_neighbours(stf_fluid *f);
+int stf_cy_pair_offsets(stf_fluid *f);
 
 /* cy_walls.c: the rest density and the wall tables (at creation); the walls' terms at
  * particle i (into c->gw, qw, wv, lw, lwv, lwm, and rho: the walls' part of the density);
  * the walls' impulses of the substep given back to the colliders. */
-void cy_tables(stf_fluid *f, cy_state *c);
-void cy_walls_one(stf_fluid *f, int i);
-void cy_wall_reactions(stf_fluid *f, double dt);
+void stf_cy_tables(stf_fluid *f, cy_state *c);
+void stf_cy_walls_one(stf_fluid *f, int i);
+void stf_cy_wall_reactions(stf_fluid *f, double dt);
 
-/* cy_density.c: particle i's density (c->rho, added to the walls' part cy_walls_one left
+/* cy_density.c: particle i's density (c->rho, added to the walls' part stf_cy_walls_one left
  * there), 1 / rho, S_i, and its pairs' gradients and viscous weights (c->pair, c->lap). */
-void cy_density_one(stf_fluid *f, int i);
+void stf_cy_density_one(stf_fluid *f, int i);
 
 /* cy_pressure.c: Algorithm 1 on f->v for a substep of dt, w the warm start's weight (0: from
  * zero pressure; c->kappa, kr and ktot as the density pass left them). */
-void cy_pressure_project(stf_fluid *f, double dt, double w);
+void stf_cy_pressure_project(stf_fluid *f, double dt, double w);
 
 /* cy_viscosity.c: the viscosity step on f->v (v** -> v) for a substep of dt; leaves in c->r
- * the velocity the walls' viscous impulses are taken at (cy_wall_reactions). */
-void cy_viscosity_solve(stf_fluid *f, double dt);
+ * the velocity the walls' viscous impulses are taken at (stf_cy_wall_reactions). */
+void stf_cy_viscosity_solve(stf_fluid *f, double dt);
 
 #endif

@@ -1,7 +1,7 @@
-/* cy_neighbours.c - the Carreau-Yasuda model's neighbour lists: every particle's neighbours
- * within h, found by its own search for a fluid that is not periodic (cy_neighbours) or taken
+/* stf_cy_neighbours.c - the Carreau-Yasuda model's neighbour lists: every particle's neighbours
+ * within h, found by its own search for a fluid that is not periodic (stf_cy_neighbours) or taken
  * from the shared grid (grid.c, periodic fluids), and laid out compactly (CSR) for the passes
- * of the step (cy_pair_offsets). The second paper (Algorithm 2, step 1) only says that the
+ * of the step (stf_cy_pair_offsets). The second paper (Algorithm 2, step 1) only says that the
  * neighbours are found; the search is ours.
  *
  * Why not grid.c's search: both find the same neighbours (r < h), but the order of a list is
@@ -32,7 +32,7 @@ static int reserve_pairs(cy_state *c, size_t pairs)
 }
 
 /* Compact offsets of the grid's neighbour lists (serial: a prefix sum) and room for them. */
-int cy_pair_offsets(stf_fluid *f)
+int stf_cy_pair_offsets(stf_fluid *f)
 {
     cy_state *c = f->cy;
     size_t total = 0;
@@ -61,7 +61,7 @@ int cy_pair_offsets(stf_fluid *f)
  * many cells for the particles (far-flung particles: the shared hashed grid is used
  * instead), -1 out of memory. */
 #define XCELLS 4
-int cy_neighbours(stf_fluid *f)
+int stf_cy_neighbours(stf_fluid *f)
 {
     cy_state *c = f->cy;
     int n = f->n;
@@ -73,7 +73,7 @@ int cy_neighbours(stf_fluid *f)
 #pragma omp parallel for schedule(static) reduction(min : lo0, lo1, lo2)                           \
     reduction(max : hi0, hi1, hi2)
     for (int i = 0; i < n; i++) {
-        const double *p = x + 3 * i; /* positions are finite (fluid_check) */
+        const double *p = x + 3 * i; /* positions are finite (stf_fluid_check) */
         lo0 = p[0] < lo0 ? p[0] : lo0, hi0 = p[0] > hi0 ? p[0] : hi0;
         lo1 = p[1] < lo1 ? p[1] : lo1, hi1 = p[1] > hi1 ? p[1] : hi1;
         lo2 = p[2] < lo2 ? p[2] : lo2, hi2 = p[2] > hi2 ? p[2] : hi2;

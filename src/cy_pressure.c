@@ -16,7 +16,7 @@
  *
  * The projection is Jacobi with the full k_i of Eq. 21 (no relaxation), from zero
  * pressure each step, as Algorithm 1, unless the scene asks for relaxation and warm_start
- * (see cy_pressure_project). */
+ * (see stf_cy_pressure_project). */
 #include "cy_internal.h"
 
 /* rho*_i (Eq. 19) from the velocities v. */
@@ -90,7 +90,7 @@ static double mean_error(const stf_fluid *f)
  * floor layer with omega = 1 and ran with omega = 0.5 and warm_start 0.5 (measured).
  * kappa, kr and ktot were set by the density pass (the warm start, or zero). Each iteration
  * is two neighbour passes: the velocity change, then rho* with the next k_i. */
-void cy_pressure_project(stf_fluid *f, double dt, double w)
+void stf_cy_pressure_project(stf_fluid *f, double dt, double w)
 {
     cy_state *c = f->cy;
     int n = f->n, iter = 0;

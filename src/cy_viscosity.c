@@ -181,7 +181,7 @@ static void viscosity_field(stf_fluid *f, const double *v)
  * fluid and a body lost 5e-4 of the momentum they exchanged at the default tolerance,
  * test_cy), while a stiff mode keeps the CG solution's small error (v = v** + dt a(u)
  * would multiply it by dt A). */
-void cy_viscosity_solve(stf_fluid *f, double dt)
+void stf_cy_viscosity_solve(stf_fluid *f, double dt)
 {
     cy_state *c = f->cy;
     int n = f->n, N = 3 * n;

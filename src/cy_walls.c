@@ -4,9 +4,9 @@
  * Eq. 6 (density), Eq. 20-21 (the factor S_i), Algorithm 1 (the gradient sum G the pressure
  * pushes along), Eq. 9 and 22 (the strain rate sees the solid's velocity) and the viscous
  * force (Morris' mirror velocity, the central form's block; see cy_viscosity.c): tabulated by
- * distance once (cy_tables, with the rest density rho0 of the lattice the blocks are filled
- * with), summed over the colliders at each particle every substep (cy_walls_one), and the
- * impulses they gave the particles returned to the colliders (cy_wall_reactions).
+ * distance once (stf_cy_tables, with the rest density rho0 of the lattice the blocks are filled
+ * with), summed over the colliders at each particle every substep (stf_cy_walls_one), and the
+ * impulses they gave the particles returned to the colliders (stf_cy_wall_reactions).
  *
  * Walls (any collider: container, ODE bodies) are a half-space of lattice particles at
  * rest density that move with the solid (tabulated by distance, as the Clavet model's
@@ -27,7 +27,7 @@
 /* Rest density: the kernel sum of the cubic lattice the blocks are filled with, so a block
  * starts at rho0; and the wall tables (a half-space of that lattice, first layer half a
  * spacing inside the solid, so a particle half a spacing from a wall sees the lattice). */
-void cy_tables(stf_fluid *f, cy_state *c)
+void stf_cy_tables(stf_fluid *f, cy_state *c)
 {
     double s = f->def.spacing, h = f->h, m = f->mass;
     int k = (int)ceil(h / s) + 1;
@@ -156,9 +156,9 @@ static int wall_term(const stf_fluid *f, const collider *col, int i, double G[3]
         if (d2 > (col->bound + h) * (col->bound + h)) return 0;
     }
     double fd[5], fn[5][3];
-    int faces = collider_container_faces(col, x, fd, fn), hit = 0;
+    int faces = stf_collider_container_faces(col, x, fd, fn), hit = 0;
     if (faces == 0) {
-        double d = collider_sdf(col, x, fn[0]);
+        double d = stf_collider_sdf(col, x, fn[0]);
         if (d >= h) return 0;
         fd[0] = d;
         faces = 1;
@@ -195,11 +195,11 @@ static int wall_term(const stf_fluid *f, const collider *col, int i, double G[3]
                                 qc[2] * (n1[a] * n2[b] + n2[a] * n1[b]) + (a == b ? qc[3] : 0);
         for (int a = 0; a < 3; a++) G[a] += g1 * fn[p][a] + g2 * fn[q][a];
     }
-    if (hit) collider_velocity_at(col, x, vb);
+    if (hit) stf_collider_velocity_at(col, x, vb);
     return hit;
 }
 
-void cy_walls_one(stf_fluid *f, int i)
+void stf_cy_walls_one(stf_fluid *f, int i)
 {
     cy_state *c = f->cy;
     double *gw = c->gw + 3 * i, *wv = c->wv + 9 * i, *lwv = c->lwv + 3 * i, rho = 0, q = 0, lw = 0;
@@ -236,7 +236,7 @@ void cy_walls_one(stf_fluid *f, int i)
 /* The impulses the walls gave the particles during the step go back to the colliders:
  * pressure -dt (sum k_i / rho_i) G and viscous dt (the wall part of viscous_one), the latter
  * with the velocity u the viscous step evaluated (c->r, viscosity_solve). */
-void cy_wall_reactions(stf_fluid *f, double dt)
+void stf_cy_wall_reactions(stf_fluid *f, double dt)
 {
     cy_state *c = f->cy;
     int n = f->n;
@@ -261,6 +261,6 @@ void cy_wall_reactions(stf_fluid *f, double dt)
             for (int a = 0; a < 3; a++)
                 c->dv[3 * i + a] = f->mass * dt * (ww * (c->r[3 * i + a] - vb[a]) - ki * G[a]);
         }
-        collider_take_reaction(col, c->dv, f->x, c->hit, n);
+        stf_collider_take_reaction(col, c->dv, f->x, c->hit, n);
     }
 }

@@ -77,7 +77,7 @@ static int check_def(const stf_fluid_def *d, char *err, size_t errlen)
     if (d->effects & ~all) FAIL("effects: unknown effect bits 0x%x", d->effects & ~all);
     if (d->model != STF_MODEL_CLAVET_STF && d->model != STF_MODEL_CARREAU_YASUDA)
         FAIL("model: must be clavet_stf or carreau_yasuda (got %d)", d->model);
-    if (d->model == STF_MODEL_CARREAU_YASUDA && cy_check_def(d, err, errlen) != 0) return -1;
+    if (d->model == STF_MODEL_CARREAU_YASUDA && stf_cy_check_def(d, err, errlen) != 0) return -1;
     for (int a = 0; a < 3; a++)
         if (d->model != STF_MODEL_CARREAU_YASUDA && d->periodic[a] != 0)
             FAIL("periodic: only the carreau_yasuda model has periodic axes");
@@ -190,14 +190,14 @@ int stf_fluid_create(const stf_fluid_def *def, stf_fluid **out, char *err, size_
     f->rest_near = def->tension ? 0 : rest_near;
     if (def->rest_density > 0) f->rest_density = def->rest_density;
     f->reorder_interval = 16;
-    pressure_wall_table(f);
+    stf_pressure_wall_table(f);
     if (def->model == STF_MODEL_CLAVET_STF && def->relaxation == STF_RELAX_GAUSS_SEIDEL &&
         (def->effects & STF_EFFECT_SPRINGS) &&
         !(f->gs = calloc(1, sizeof *f->gs))) {
         free(f);
         FAIL("out of memory");
     }
-    if (def->model == STF_MODEL_CARREAU_YASUDA && cy_create(f) != 0) {
+    if (def->model == STF_MODEL_CARREAU_YASUDA && stf_cy_create(f) != 0) {
         free(f);
         FAIL("out of memory");
     }
@@ -218,13 +218,13 @@ void stf_fluid_destroy(stf_fluid *f)
     free(f->rho);
     free(f->rho_near);
     free(f->khist_mean);
-    grid_free(&f->grid);
-    if (f->gs) gs_free(f->gs);
+    stf_grid_free(&f->grid);
+    if (f->gs) stf_gs_free(f->gs);
     free(f->gs);
-    cy_free(f);
-    if (f->springs.n_alloc) springs_free(&f->springs);
-    if (f->hist.n_alloc) history_free(&f->hist);
-    for (int k = 0; k < f->ncolliders; k++) collider_free(&f->colliders[k]);
+    stf_cy_free(f);
+    if (f->springs.n_alloc) stf_springs_free(&f->springs);
+    if (f->hist.n_alloc) stf_history_free(&f->hist);
+    for (int k = 0; k < f->ncolliders; k++) stf_collider_free(&f->colliders[k]);
     free(f->colliders);
     free(f);
 }
@@ -252,14 +252,14 @@ static int reserve(stf_fluid *f, int n)
         (grow((void **)&f->rho, sizeof(double), cap) || grow((void **)&f->rho_near, sizeof(double), cap)))
         return -1;
     if (has(f, STF_EFFECT_SPRINGS)) {
-        if (f->springs.n_alloc == 0 ? springs_init(&f->springs, cap) : springs_resize(&f->springs, cap))
+        if (f->springs.n_alloc == 0 ? stf_springs_init(&f->springs, cap) : stf_springs_resize(&f->springs, cap))
             return -1;
     }
     if (has(f, STF_EFFECT_HISTORY)) {
         if (grow((void **)&f->khist_mean, sizeof(float), cap)) return -1;
         if (f->hist.n_alloc == 0 && f->hist.w == NULL) {
             /* the window is fixed at the first step, when dt is known */
-        } else if (history_resize(&f->hist, cap)) {
+        } else if (stf_history_resize(&f->hist, cap)) {
             return -1;
         }
     }
@@ -347,7 +347,7 @@ int stf_fluid_add_collider(stf_fluid *f, const stf_collider_def *def, char *err,
         f->collider_cap = cap;
     }
     collider *c = &f->colliders[f->ncolliders];
-    if (collider_init(c, def, err, errlen) != 0) return -1;
+    if (stf_collider_init(c, def, err, errlen) != 0) return -1;
     c->two_sided = def->shape == STF_SHAPE_CONTAINER && stf_wall_two_sided(def->wall, f->def.spacing);
     return f->ncolliders++;
 }
@@ -365,7 +365,7 @@ void stf_fluid_set_collider_state(stf_fluid *f, int id, const double pos[3], con
 double stf_fluid_collider_distance(const stf_fluid *f, int id, const double x[3])
 {
     double n[3];
-    return collider_sdf(&f->colliders[id], x, n);
+    return stf_collider_sdf(&f->colliders[id], x, n);
 }
 
 void stf_fluid_collider_impulse(const stf_fluid *f, int id, double impulse[3], double moment[3])
@@ -389,12 +389,12 @@ int stf_fluid_remove_inside(stf_fluid *f, int id)
     if (!perm) return -1;
     for (int i = 0; i < f->n; i++) {
         double nrm[3];
-        if (collider_sdf(&f->colliders[id], f->x + 3 * i, nrm) >= margin) perm[m++] = i;
+        if (stf_collider_sdf(&f->colliders[id], f->x + 3 * i, nrm) >= margin) perm[m++] = i;
     }
     int removed = f->n - m;
     if (removed) {
         f->n = m; /* keep the first m of perm; springs to the others are dropped */
-        if (fluid_permute(f, perm) != 0) removed = -1;
+        if (stf_fluid_permute(f, perm) != 0) removed = -1;
     }
     free(perm);
     return removed;
@@ -410,7 +410,7 @@ static void permute_vec3(double *a, double *tmp, const int32_t *perm, int n)
     memcpy(a, tmp, (size_t)n * 3 * sizeof *a);
 }
 
-int fluid_permute(stf_fluid *f, const int32_t *perm)
+int stf_fluid_permute(stf_fluid *f, const int32_t *perm)
 {
     int n = f->n;
     int32_t *inv = malloc((size_t)f->cap * sizeof *inv);
@@ -434,9 +434,9 @@ int fluid_permute(stf_fluid *f, const int32_t *perm)
         for (int i = 0; i < n; i++) k[i] = f->khist_mean[perm[i]];
         memcpy(f->khist_mean, k, (size_t)n * sizeof *k);
     }
-    if (f->springs.n_alloc) springs_permute(&f->springs, perm, inv, n);
+    if (f->springs.n_alloc) stf_springs_permute(&f->springs, perm, inv, n);
     grid_invalidate(&f->grid); /* its candidate lists hold the old indices */
-    int rc = f->hist.n_alloc ? history_permute(&f->hist, perm, n) : 0;
+    int rc = f->hist.n_alloc ? stf_history_permute(&f->hist, perm, n) : 0;
     free(inv);
     free(ids);
     return rc;
@@ -467,7 +467,7 @@ static int first_bad(const stf_fluid *f, double vmax)
     return bad < n ? bad : -1;
 }
 
-int fluid_check(stf_fluid *f, const char *effect)
+int stf_fluid_check(stf_fluid *f, const char *effect)
 {
     double vmax = 10.0 * f->h / f->dt_now;
     int i = first_bad(f, vmax);
@@ -490,15 +490,15 @@ int fluid_check(stf_fluid *f, const char *effect)
 static int start_history(stf_fluid *f, double dt)
 {
     if (f->def.history_mode == STF_HISTORY_SOE)
-        return history_soe_init(&f->hist, f->def.q, f->def.terms, f->cap > 0 ? f->cap : 1);
+        return stf_history_soe_init(&f->hist, f->def.q, f->def.terms, f->cap > 0 ? f->cap : 1);
     int window = 0;
     if (f->def.history_mode == STF_HISTORY_WINDOW)
         window = f->def.memory > 0 ? (int)lround(f->def.memory / dt) : f->def.d;
     if (window < 1 && f->def.history_mode == STF_HISTORY_WINDOW) window = 1;
-    return history_init(&f->hist, f->def.q, window, f->cap > 0 ? f->cap : 1);
+    return stf_history_init(&f->hist, f->def.q, window, f->cap > 0 ? f->cap : 1);
 }
 
-void fluid_smoothed_velocity(const stf_fluid *f, double *out)
+void stf_fluid_smoothed_velocity(const stf_fluid *f, double *out)
 {
     int n = f->n;
     const double *x = f->x, *v = f->v;
@@ -523,7 +523,7 @@ void fluid_smoothed_velocity(const stf_fluid *f, double *out)
 static int reorder_by_cell(stf_fluid *f)
 {
     /* The grid's bucket order keeps each cell's particles together in memory. */
-    return fluid_permute(f, f->grid.order);
+    return stf_fluid_permute(f, f->grid.order);
 }
 
 static void gravity_apply(stf_fluid *f, double dt)
@@ -552,35 +552,35 @@ int stf_fluid_step(stf_fluid *f, double dt)
         memset(f->colliders[k].moment, 0, sizeof f->colliders[k].moment);
         memset(f->colliders[k].shift, 0, sizeof f->colliders[k].shift);
     }
-    if (f->cy) return cy_step(f, dt);
+    if (f->cy) return stf_cy_step(f, dt);
     if (has(f, STF_EFFECT_HISTORY) && f->hist.w == NULL && start_history(f, dt) != 0) goto oom;
     TIMED(STAGE_GRID, {
         /* Particles are re-sorted by cell (memory locality) when the neighbour candidates
            are rebuilt anyway, at most every reorder_interval steps: particles that stay put
            stay in order and keep their candidate lists. */
-        if (grid_due(&f->grid, f->x, n, f->h) && f->steps >= f->next_reorder) {
-            if (grid_sort(&f->grid, f->x, n, f->h) != 0 || reorder_by_cell(f) != 0) goto oom;
+        if (stf_grid_due(&f->grid, f->x, n, f->h) && f->steps >= f->next_reorder) {
+            if (stf_grid_sort(&f->grid, f->x, n, f->h) != 0 || reorder_by_cell(f) != 0) goto oom;
             f->next_reorder = f->steps + f->reorder_interval;
         }
-        if (grid_build_checked(&f->grid, f->x, n, f->h) != 0) goto oom; /* moves checked once */
+        if (stf_grid_build_checked(&f->grid, f->x, n, f->h) != 0) goto oom; /* moves checked once */
     });
     if (has(f, STF_EFFECT_HISTORY) && f->def.k_hist > 0) { /* k_hist = 0: D is never read */
         TIMED(STAGE_HISTORY, {
             const double *vh = f->v;
             if (f->def.history_velocity == STF_HISTORY_SMOOTHED) {
-                fluid_smoothed_velocity(f, f->dx);
+                stf_fluid_smoothed_velocity(f, f->dx);
                 vh = f->dx;
             }
-            if (history_push(&f->hist, vh, n) != 0) goto oom;
-            history_derivative(&f->hist, n);
+            if (stf_history_push(&f->hist, vh, n) != 0) goto oom;
+            stf_history_derivative(&f->hist, n);
         });
     }
     if (has(f, STF_EFFECT_GRAVITY)) {
         TIMED(STAGE_GRAVITY, gravity_apply(f, dt));
     }
     if (has(f, STF_EFFECT_VISCOSITY)) {
-        TIMED(STAGE_VISCOSITY, viscosity_apply(f, dt));
-        if (fluid_check(f, "viscosity")) return -1;
+        TIMED(STAGE_VISCOSITY, stf_viscosity_apply(f, dt));
+        if (stf_fluid_check(f, "viscosity")) return -1;
     }
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < 3 * n; i++) {
@@ -589,22 +589,22 @@ int stf_fluid_step(stf_fluid *f, double dt)
     }
     if (has(f, STF_EFFECT_SPRINGS)) {
         int rc = 0;
-        TIMED(STAGE_SPRINGS, rc = springs_step(f, dt));
+        TIMED(STAGE_SPRINGS, rc = stf_springs_step(f, dt));
         if (rc != 0) goto oom;
-        if (fluid_check(f, has(f, STF_EFFECT_HISTORY) ? "history springs" : "springs")) return -1;
+        if (stf_fluid_check(f, has(f, STF_EFFECT_HISTORY) ? "history springs" : "springs")) return -1;
     }
     if (has(f, STF_EFFECT_PRESSURE)) {
-        TIMED(STAGE_PRESSURE, pressure_relax(f, dt));
-        if (fluid_check(f, "pressure")) return -1;
+        TIMED(STAGE_PRESSURE, stf_pressure_relax(f, dt));
+        if (stf_fluid_check(f, "pressure")) return -1;
 
     }
-    TIMED(STAGE_COLLIDE, collide_all(f, dt));
+    TIMED(STAGE_COLLIDE, stf_collide_all(f, dt));
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < 3 * n; i++) f->v[i] = (f->x[i] - f->xprev[i]) / dt;
-    if (fluid_check(f, "collisions")) return -1;
+    if (stf_fluid_check(f, "collisions")) return -1;
     if (has(f, STF_EFFECT_BOUNDARY_STICK)) {
-        TIMED(STAGE_BOUNDARY, boundary_stick(f, dt));
-        if (fluid_check(f, "boundary_stick")) return -1;
+        TIMED(STAGE_BOUNDARY, stf_boundary_stick(f, dt));
+        if (stf_fluid_check(f, "boundary_stick")) return -1;
     }
     f->time += dt;
     f->steps++;
@@ -645,7 +645,7 @@ void stf_fluid_reset_clock(stf_fluid *f)
 
 void stf_fluid_forget_history(stf_fluid *f)
 {
-    if (f->hist.n_alloc || f->hist.w) history_free(&f->hist); /* re-made at the next step */
+    if (f->hist.n_alloc || f->hist.w) stf_history_free(&f->hist); /* re-made at the next step */
     if (f->khist_mean) memset(f->khist_mean, 0, (size_t)f->cap * sizeof *f->khist_mean);
 }
 
@@ -659,7 +659,7 @@ void stf_fluid_get_history_stiffness(const stf_fluid *f, float *k)
 
 long stf_fluid_spring_count(const stf_fluid *f)
 {
-    return f->springs.n_alloc ? springs_total(&f->springs, f->n) : 0;
+    return f->springs.n_alloc ? stf_springs_total(&f->springs, f->n) : 0;
 }
 
 double stf_fluid_max_speed(const stf_fluid *f)
@@ -700,9 +700,9 @@ size_t stf_fluid_effect_bytes(const stf_fluid *f, unsigned effect)
 {
     switch (effect) {
     case STF_EFFECT_PRESSURE: return f->rho ? 2 * (size_t)f->cap * sizeof(double) : 0;
-    case STF_EFFECT_SPRINGS: return f->springs.n_alloc ? springs_bytes(&f->springs) : 0;
+    case STF_EFFECT_SPRINGS: return f->springs.n_alloc ? stf_springs_bytes(&f->springs) : 0;
     case STF_EFFECT_HISTORY:
-        return (f->hist.n_alloc ? history_bytes(&f->hist) : 0) +
+        return (f->hist.n_alloc ? stf_history_bytes(&f->hist) : 0) +
                (f->khist_mean ? (size_t)f->cap * sizeof(float) : 0);
     default: return 0; /* gravity, viscosity and boundary_stick keep no storage */
     }
@@ -732,7 +732,7 @@ int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
                          has(f, STF_EFFECT_GRAVITY) ? "gravity" : "", d->spacing, f->h, d->density,
                          f->mass, d->jitter, d->gravity[0], d->gravity[1], d->gravity[2]);
         size_t used = k > 0 && (size_t)k < len ? (size_t)k : len;
-        return k + cy_describe(f, buf + used, len - used);
+        return k + stf_cy_describe(f, buf + used, len - used);
     }
     static const char *const names[] = {"gravity", "viscosity", "pressure", "springs", "history",
                                         "boundary_stick"};

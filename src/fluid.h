@@ -65,26 +65,26 @@ struct stf_fluid {
 };
 
 /* The effect stages (one file each). */
-void viscosity_apply(stf_fluid *f, double dt);               /* viscosity.c */
-void pressure_relax(stf_fluid *f, double dt);                /* pressure.c */
-void pressure_wall_table(stf_fluid *f);                       /* pressure.c */
-void collide_all(stf_fluid *f, double dt);                   /* collider.c */
-void boundary_stick(stf_fluid *f, double dt);                /* boundary.c */
+void stf_viscosity_apply(stf_fluid *f, double dt);               /* viscosity.c */
+void stf_pressure_relax(stf_fluid *f, double dt);                /* pressure.c */
+void stf_pressure_wall_table(stf_fluid *f);                       /* pressure.c */
+void stf_collide_all(stf_fluid *f, double dt);                   /* collider.c */
+void stf_boundary_stick(stf_fluid *f, double dt);                /* boundary.c */
 
 /* history.velocity smoothed: the velocity field at each particle as the density kernel sees
  * it, the Shepard average sum_j w_ij v_j / sum_j w_ij over the particle and its neighbours
  * (the grid's current rows), w = (1 - r/h)^2, 1 for the particle itself. A linear field is
  * kept where the neighbourhood is symmetric (the bulk); a particle's own grid-scale jitter
  * is averaged out. Into out (3n). */
-void fluid_smoothed_velocity(const stf_fluid *f, double *out);
+void stf_fluid_smoothed_velocity(const stf_fluid *f, double *out);
 
 /* Checks every particle after a stage named effect; on a blow-up or NaN writes the failure
  * message and returns -1. */
-int fluid_check(stf_fluid *f, const char *effect);
+int stf_fluid_check(stf_fluid *f, const char *effect);
 
 /* Permutes every per-particle array by perm (new index -> old index). Returns 0, or -1
  * when out of memory (then nothing has moved, unless the history ring's copy failed). */
-int fluid_permute(stf_fluid *f, const int32_t *perm);
+int stf_fluid_permute(stf_fluid *f, const int32_t *perm);
 
 static inline int has(const stf_fluid *f, unsigned effect) { return (f->def.effects & effect) != 0; }
 

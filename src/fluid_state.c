@@ -64,7 +64,7 @@ static int save_history(const stf_history *h, int n, stf_state *s)
     size_t row = (size_t)n * 3;
     float *ring = malloc((size_t)h->cap * row * sizeof *ring + 1);
     if (!ring) return -1;
-    history_ring_get(h, ring, n); /* slot-major, particle order */
+    stf_history_ring_get(h, ring, n); /* slot-major, particle order */
     stf_state_put_owned(s, "history.ring", F32, (size_t)h->cap * row, ring);
     return 0;
 }
@@ -98,7 +98,7 @@ int stf_fluid_save_state(const stf_fluid *f, stf_state *s)
     if (f->springs.n_alloc && save_springs(&f->springs, n, s) != 0) return -1;
     stf_state_put_i64(s, "history.started", f->hist.w != NULL);
     if (f->hist.w && save_history(&f->hist, n, s) != 0) return -1;
-    if (f->cy && cy_save_state(f, s) != 0) return -1;
+    if (f->cy && stf_cy_save_state(f, s) != 0) return -1;
     return s->failed ? -1 : 0;
 }
 
@@ -126,7 +126,7 @@ static int load_springs(stf_fluid *f, const stf_state *s, char *err, size_t errl
         snprintf(err, errlen, "checkpoint: springs.partner/rest missing or not %ld long", total);
         return -1;
     }
-    if (stride > 1 << 20 || springs_reserve_stride(sp, n, (int)stride) != 0) {
+    if (stride > 1 << 20 || stf_springs_reserve_stride(sp, n, (int)stride) != 0) {
         snprintf(err, errlen, "checkpoint: cannot hold springs.stride = %ld", (long)stride);
         return -1;
     }
@@ -155,9 +155,9 @@ static int load_history(stf_fluid *f, const stf_state *s, char *err, size_t errl
     int n = f->n, cap_n = f->cap > 0 ? f->cap : 1;
     int64_t pushed;
     if (stf_state_get_i64(s, "history.pushed", &pushed, err, errlen)) return -1;
-    if (h->n_alloc || h->w) history_free(h);
+    if (h->n_alloc || h->w) stf_history_free(h);
     if (f->def.history_mode == STF_HISTORY_SOE) {
-        if (history_soe_init(h, f->def.q, f->def.terms, cap_n) != 0) goto oom;
+        if (stf_history_soe_init(h, f->def.q, f->def.terms, cap_n) != 0) goto oom;
         h->pushed = (long)pushed;
         return stf_state_get(s, "history.soe_T", F64, (size_t)n * (size_t)h->terms * 3, h->soe_T,
                              err, errlen) ||
@@ -175,7 +175,7 @@ static int load_history(stf_fluid *f, const stf_state *s, char *err, size_t errl
                  "the scene", (long)window, (long)cap, (long)head);
         return -1;
     }
-    if (history_init(h, f->def.q, (int)window, cap_n) != 0 || history_set_slots(h, (int)cap) != 0)
+    if (stf_history_init(h, f->def.q, (int)window, cap_n) != 0 || stf_history_set_slots(h, (int)cap) != 0)
         goto oom;
     h->pushed = (long)pushed;
     h->head = (int)head;
@@ -183,7 +183,7 @@ static int load_history(stf_fluid *f, const stf_state *s, char *err, size_t errl
     float *ring = malloc((size_t)cap * row * sizeof *ring + 1);
     if (!ring) goto oom;
     int rc = stf_state_get(s, "history.ring", F32, (size_t)cap * row, ring, err, errlen);
-    if (rc == 0 && history_ring_set(h, ring, n) != 0) {
+    if (rc == 0 && stf_history_ring_set(h, ring, n) != 0) {
         snprintf(err, errlen, "checkpoint: %d particles do not fit the history ring", n);
         rc = -1;
     }
@@ -248,13 +248,13 @@ int stf_fluid_load_state(stf_fluid *f, const stf_state *s, char *err, size_t err
         if (stf_state_get_f64(s, "grid.href", &href, err, errlen) ||
             stf_state_get_f64(s, "grid.skin_used", &skin_used, err, errlen))
             return -1;
-        if (grid_restore(&f->grid, xr->data, (int)n, href, skin_used) != 0) {
+        if (stf_grid_restore(&f->grid, xr->data, (int)n, href, skin_used) != 0) {
             snprintf(err, errlen, "checkpoint: out of memory for the neighbour lists");
             return -1;
         }
     }
     if (f->springs.n_alloc && load_springs(f, s, err, errlen) != 0) return -1;
     if (has(f, STF_EFFECT_HISTORY) && started && load_history(f, s, err, errlen) != 0) return -1;
-    if (f->cy && cy_load_state(f, s, err, errlen) != 0) return -1;
+    if (f->cy && stf_cy_load_state(f, s, err, errlen) != 0) return -1;
     return 0;
 }

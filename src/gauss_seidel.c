@@ -51,7 +51,7 @@
 
 enum { GS_COLOURS = 27 };
 
-void gs_free(stf_gs *g)
+void stf_gs_free(stf_gs *g)
 {
     free(g->cell_of);
     free(g->start);
@@ -179,7 +179,7 @@ static void relax_springs_of(stf_fluid *f, stf_gs *g, int i, double dt, double k
     }
 }
 
-int gs_springs(stf_fluid *f, double dt, double khist_scale)
+int stf_gs_springs(stf_fluid *f, double dt, double khist_scale)
 {
     stf_gs *g = f->gs;
     const stf_springs *s = &f->springs;

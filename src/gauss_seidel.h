@@ -21,7 +21,7 @@ typedef struct stf_gs {
 
 /* Relaxes the springs of f (rows as springs.c left them) for def.iterations sweeps.
  * khist_scale: Eq. 6's factor (0 without history). Returns 0, -1 out of memory. */
-int gs_springs(stf_fluid *f, double dt, double khist_scale);
-void gs_free(stf_gs *g);
+int stf_gs_springs(stf_fluid *f, double dt, double khist_scale);
+void stf_gs_free(stf_gs *g);
 
 #endif

@@ -309,7 +309,7 @@ static int grow(void *p, size_t *cap, size_t need, size_t size)
  * contiguous range of particles (in memory order, so consecutive ones mostly share a cell
  * and its run) into its own buffer; then the lists are laid end to end in particle order
  * (row i at off[i], ccount[i] long); the neighbour rows go in the same space (see
- * grid_build_checked). */
+ * stf_grid_build_checked). */
 static int rebuild(stf_grid *g, const double *x, int n, double h)
 {
     g->valid = 0; /* until it succeeds: a failure leaves ccount, off and cand half new */
@@ -409,7 +409,7 @@ static void most_moved(const stf_grid *g, const double *x, int n, double *d1, do
                 else t2 = q;
             }
         }
-#pragma omp critical(grid_most_moved)
+#pragma omp critical(stf_grid_most_moved)
         { /* merge the threads' two largest: the result is the two largest of all */
             if (t1 > m1) m2 = m1 > t2 ? m1 : t2, m1 = t1;
             else if (t1 > m2) m2 = t1;
@@ -563,7 +563,7 @@ static int relative_moves_ok(stf_grid *g, const double *x, int n, double lim)
     return ok;
 }
 
-int grid_due(stf_grid *g, const double *x, int n, double h)
+int stf_grid_due(stf_grid *g, const double *x, int n, double h)
 {
     if (!g->valid || n != g->nref || h != g->href) {
         g->valid = 0;
@@ -608,7 +608,7 @@ static int morton_cmp(const void *a, const void *b)
  * bucket order of the hash scatters them), which keeps the neighbour loops in cache at large
  * particle counts, and the particles of a cell are consecutive, so the candidate search
  * gathers each cell's run once. */
-int grid_sort(stf_grid *g, const double *x, int n, double h)
+int stf_grid_sort(stf_grid *g, const double *x, int n, double h)
 {
     if (ensure_particles(g, n) != 0) return -1;
     g->valid = 0;
@@ -691,13 +691,13 @@ static int build_periodic(stf_grid *g, const double *x, int n, double h)
     return 0;
 }
 
-int grid_build(stf_grid *g, const double *x, int n, double h)
+int stf_grid_build(stf_grid *g, const double *x, int n, double h)
 {
-    if (!periodic(g)) grid_due(g, x, n, h);
-    return grid_build_checked(g, x, n, h);
+    if (!periodic(g)) stf_grid_due(g, x, n, h);
+    return stf_grid_build_checked(g, x, n, h);
 }
 
-int grid_build_checked(stf_grid *g, const double *x, int n, double h)
+int stf_grid_build_checked(stf_grid *g, const double *x, int n, double h)
 {
     if (ensure_particles(g, n) != 0) return -1;
     g->builds++;
@@ -730,7 +730,7 @@ int grid_build_checked(stf_grid *g, const double *x, int n, double h)
     return 0;
 }
 
-void grid_free(stf_grid *g)
+void stf_grid_free(stf_grid *g)
 {
     free(g->key);
     free(g->order);
@@ -759,7 +759,7 @@ static size_t grid_buf_bytes(const stf_grid *g)
     return b;
 }
 
-size_t grid_bytes(const stf_grid *g)
+size_t stf_grid_bytes(const stf_grid *g)
 {
     return (size_t)g->n_alloc * (sizeof(uint32_t) + 3 * sizeof(int32_t) + 3 * sizeof(double) +
                                  3 * sizeof(size_t) + sizeof(uint8_t)) +
@@ -769,7 +769,7 @@ size_t grid_bytes(const stf_grid *g)
            ((size_t)g->nbuckets_alloc + 1) * sizeof(int32_t);
 }
 
-int grid_restore(stf_grid *g, const double *xref, int n, double h, double skin_used)
+int stf_grid_restore(stf_grid *g, const double *xref, int n, double h, double skin_used)
 {
     if (ensure_particles(g, n) != 0) return -1;
     double skin = g->skin;

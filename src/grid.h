@@ -42,12 +42,12 @@ typedef struct stf_grid {
     int32_t **buf;     /* nbuf: each thread's candidate lists during a rebuild */
     size_t *buf_cap;   /* nbuf: entries each holds */
     int nbuf;
-    double *box;       /* nbox * 6: displacement bounds per bucket (grid_due) */
+    double *box;       /* nbox * 6: displacement bounds per bucket (stf_grid_due) */
     size_t nbox;
     double *xref;      /* 3n: positions at the last rebuild */
     int nref;          /* particle count at the last rebuild */
     double href;       /* h at the last rebuild, m */
-    int valid;         /* 0: rebuild the candidates at the next grid_build (set on reorder) */
+    int valid;         /* 0: rebuild the candidates at the next stf_grid_build (set on reorder) */
     long rebuilds, builds; /* statistics */
     double skin;       /* Verlet skin, fraction of h, set by the owner (0: the default 0.25);
                           a flow that moves more than skin/2 every step rebuilds every step,
@@ -64,27 +64,27 @@ typedef struct stf_grid {
 
 /* Rebuilds buckets and neighbour lists for n particles at x (3n) with radius h.
  * Returns 0, or -1 when out of memory. */
-int grid_build(stf_grid *g, const double *x, int n, double h);
-/* grid_build for a caller that has just asked grid_due about these same positions (count, h):
+int stf_grid_build(stf_grid *g, const double *x, int n, double h);
+/* stf_grid_build for a caller that has just asked stf_grid_due about these same positions (count, h):
  * rebuilds the candidates only if they are invalid, without checking the moves again. */
-int grid_build_checked(stf_grid *g, const double *x, int n, double h);
-/* 1 when the next grid_build will rebuild the candidates (two particles that may be closer
+int stf_grid_build_checked(stf_grid *g, const double *x, int n, double h);
+/* 1 when the next stf_grid_build will rebuild the candidates (two particles that may be closer
  * than h moved more than the skin relative to each other, the count or h changed, or they
  * were invalidated). */
-int grid_due(stf_grid *g, const double *x, int n, double h);
+int stf_grid_due(stf_grid *g, const double *x, int n, double h);
 /* The particles' order along a Morton curve of the candidate cells (into order): for re-sorting
  * the particles. Invalidates. 0 / -1. */
-int grid_sort(stf_grid *g, const double *x, int n, double h);
-void grid_free(stf_grid *g);
-/* The particles were renumbered: the next grid_build rebuilds its candidates. */
+int stf_grid_sort(stf_grid *g, const double *x, int n, double h);
+void stf_grid_free(stf_grid *g);
+/* The particles were renumbered: the next stf_grid_build rebuilds its candidates. */
 static inline void grid_invalidate(stf_grid *g) { g->valid = 0; }
-size_t grid_bytes(const stf_grid *g);
+size_t stf_grid_bytes(const stf_grid *g);
 /* Checkpoints: rebuilds the candidate lists from the positions xref (3n) of their last
  * rebuild, with radius h and the skin (fraction of h) they had: the same lists in the same
  * order as then. 0 / -1 (out of memory). */
-int grid_restore(stf_grid *g, const double *xref, int n, double h, double skin_used);
+int stf_grid_restore(stf_grid *g, const double *xref, int n, double h, double skin_used);
 
-/* Particle i's neighbours within h (count[i] of them), after grid_build. */
+/* Particle i's neighbours within h (count[i] of them), after stf_grid_build. */
 static inline const int32_t *grid_row(const stf_grid *g, int i) { return g->nbr + g->noff[i]; }
 
 /* Asks for particle i's neighbour row ahead of a pass that visits the particles in order. */

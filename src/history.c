@@ -19,7 +19,7 @@ double stf_history_weight(double q, long p, long n)
     return pow(k - 1.0, e) - 2.0 * pow(k, e) + pow(k + 1.0, e);
 }
 
-double history_scale(double q, double dt) { return pow(dt, 1.0 - q) / tgamma(3.0 - q); }
+double stf_history_scale(double q, double dt) { return pow(dt, 1.0 - q) / tgamma(3.0 - q); }
 
 static void fill_weights(stf_history *h, int from)
 {
@@ -32,9 +32,9 @@ static void fill_weights(stf_history *h, int from)
 
 /* Window mode, time blocks of h->tblock samples (see derivative_blocked), a multiple of
  * HIST_SUB up to HIST_TBLOCK; HIST_NEWER: the elements a thread sums at a time (also in the
- * direct sum, history_derivative). */
+ * direct sum, stf_history_derivative). */
 enum { HIST_SUB = 16, HIST_TBLOCK = 32, HIST_CHUNK = 64, HIST_RUN = 16, HIST_NEWER = 1536 };
-/* history_permute: a re-sort renames the rows of a ring of more than HIST_MAP_SLOTS slots
+/* stf_history_permute: a re-sort renames the rows of a ring of more than HIST_MAP_SLOTS slots
  * (d = 500: moving the ring cost 20-25 ms a re-sort, about 1 ms a step; the pushes and sums
  * through a scrambled map about 0.1 ms a step more) and moves a shorter one (d = 50: the
  * map's gathers would cost 10% of the sums). */
@@ -63,7 +63,7 @@ static int blocked_sum(const stf_history *h)
     return !h->terms && h->window > HIST_SUB && h->pushed >= 1;
 }
 
-int history_init(stf_history *h, double q, int window, int n)
+int stf_history_init(stf_history *h, double q, int window, int n)
 {
     memset(h, 0, sizeof *h);
     h->old_n0 = -1;
@@ -80,10 +80,10 @@ int history_init(stf_history *h, double q, int window, int n)
         for (int k = 0; k < h->cap; k++) h->wf[k] = (float)h->w[k];
     }
     h->head = -1;
-    return history_resize(h, n);
+    return stf_history_resize(h, n);
 }
 
-void history_free(stf_history *h)
+void stf_history_free(stf_history *h)
 {
     free(h->soe_r);
     free(h->soe_c);
@@ -99,7 +99,7 @@ void history_free(stf_history *h)
     h->old_n0 = -1;
 }
 
-void *history_grow_zeroed(void *p, size_t old_n, size_t new_n, size_t size)
+void *stf_history_grow_zeroed(void *p, size_t old_n, size_t new_n, size_t size)
 {
     char *q = realloc(p, new_n * size);
     if (q) memset(q + old_n * size, 0, (new_n - old_n) * size);
@@ -123,14 +123,14 @@ static float *reshape_ring(const stf_history *h, int slots, int n_new, int keep,
     return ring;
 }
 
-int history_resize(stf_history *h, int n)
+int stf_history_resize(stf_history *h, int n)
 {
-    if (h->terms) return history_soe_resize(h, n);
+    if (h->terms) return stf_history_soe_resize(h, n);
     if (n <= h->n_alloc) return 0;
     int cap = n + n / 4 + 16;
     float *ring = reshape_ring(h, h->cap, cap, h->ring ? h->cap : 0, 0); /* slots stay put */
     if (!ring) return -1;
-    double *D = history_grow_zeroed(h->D, (size_t)h->n_alloc * 3, (size_t)cap * 3, sizeof *D);
+    double *D = stf_history_grow_zeroed(h->D, (size_t)h->n_alloc * 3, (size_t)cap * 3, sizeof *D);
     int *part = D ? realloc(h->part, (size_t)cap * sizeof *part) : NULL;
     if (D) h->D = D;
     if (!part) {
@@ -164,10 +164,10 @@ static int grow_slots(stf_history *h)
     return 0;
 }
 
-int history_push(stf_history *h, const double *v, int n)
+int stf_history_push(stf_history *h, const double *v, int n)
 {
     if (h->terms) {
-        history_soe_push(h, v, n);
+        stf_history_soe_push(h, v, n);
         return 0;
     }
     if (h->window == 0 && h->pushed >= h->cap && grow_slots(h) != 0) return -1;
@@ -228,7 +228,7 @@ int history_push(stf_history *h, const double *v, int n)
  * the bits of two of 16). A pass started in the middle of a block (j0 > 0: after a resize, a
  * resume) computes the rows of the sub-blocks from j0's on, from an older lag L = d - j0 < d:
  * the terms it leaves out have lags past d, weight 0 (wf holds HIST_TBLOCK zeros past lag d,
- * see history_init), and they add +0 to a sum that is +0 so far (-0 + +0 is +0); then the
+ * see stf_history_init), and they add +0 to a sum that is +0 so far (-0 + +0 is +0); then the
  * finished sub-blocks' runs, in order (derivative_blocked): every bit as in a pass from the
  * block's start. */
 /* The kernel's sums: up to OLD_JB future samples x OLD_EB elements, in groups of j (of a
@@ -255,7 +255,7 @@ static void old_kernel(const float *const *ps, int e0, int num, int jb, const fl
 #if defined(__x86_64__) && defined(__GNUC__)
 #include <immintrin.h>
 #define HIST_X86 1
-/* The same with 256-bit vectors (chosen at run time, history_simd), jb a constant once
+/* The same with 256-bit vectors (chosen at run time, stf_history_simd), jb a constant once
  * inlined: 2 jb float sums of 8 lanes in registers, the weights broadcast. Fused
  * multiply-add (_mm256_fmadd_ps, as fmaf), the run's sums then converted to double (exact)
  * and added: the same roundings as the plain version. */
@@ -335,7 +335,7 @@ static void old_run(int simd, const float *const *ps, int e0, int num, int jb, c
 
 static int simd_wanted = 2;
 
-int history_simd(int level)
+int stf_history_simd(int level)
 {
     if (level >= 0) simd_wanted = level;
     int have = 0;
@@ -347,7 +347,7 @@ int history_simd(int level)
     return simd_wanted < have ? simd_wanted : have;
 }
 
-double history_error_bound(const stf_history *h)
+double stf_history_error_bound(const stf_history *h)
 {
     /* gamma_k = k u / (1 - k u): k roundings of unit roundoff u (Higham, Accuracy and
        Stability of Numerical Algorithms, 3.1). The double sums: at most cap + 1 roundings on
@@ -435,7 +435,7 @@ static int fill_old(stf_history *h, long n0, int j0)
         h->n_old = h->old ? h->n_alloc : 0;
         if (!h->old) return -1;
     }
-    int nchunks = (len + HIST_CHUNK - 1) / HIST_CHUNK, simd = history_simd(-1);
+    int nchunks = (len + HIST_CHUNK - 1) / HIST_CHUNK, simd = stf_history_simd(-1);
 #pragma omp parallel for schedule(static)
     for (int c = 0; c < nchunks; c++) {
         int lo = c * HIST_CHUNK, cnt = len - lo < HIST_CHUNK ? len - lo : HIST_CHUNK;
@@ -453,7 +453,7 @@ static void add_mid(stf_history *h, long t, long n0)
     long age = t - (n0 + (long)(q - 1) * HIST_SUB); /* of the sub-block's oldest sample */
     int s0 = (int)(((long)h->head - age) % h->cap);
     if (s0 < 0) s0 += h->cap;
-    int nchunks = (len + HIST_CHUNK - 1) / HIST_CHUNK, simd = history_simd(-1);
+    int nchunks = (len + HIST_CHUNK - 1) / HIST_CHUNK, simd = stf_history_simd(-1);
 #pragma omp parallel for schedule(static)
     for (int c = 0; c < nchunks; c++) {
         int lo = c * HIST_CHUNK, cnt = len - lo < HIST_CHUNK ? len - lo : HIST_CHUNK;
@@ -526,7 +526,7 @@ static STF_VECTOR_CLONES void direct_sum(const stf_history *h, int m, double w_e
     for (int k = 0; k <= m; k++) add_lag(h, k, k < m ? h->w[k] : w_end, lo, cnt, acc);
 }
 
-void history_derivative(stf_history *h, int n)
+void stf_history_derivative(stf_history *h, int n)
 {
     if (h->terms) return; /* the soe push computed D */
     if (n > h->rows) n = h->rows; /* (a particle without samples: its D is left as it was) */
@@ -610,9 +610,9 @@ static int permute_gather(stf_history *h, const int *perm, int n)
     return 0;
 }
 
-int history_permute(stf_history *h, const int *perm, int n)
+int stf_history_permute(stf_history *h, const int *perm, int n)
 {
-    if (h->terms) return history_soe_permute(h, perm, n);
+    if (h->terms) return stf_history_soe_permute(h, perm, n);
     /* particles added since the last push get their rows first: perm names particles up to
        the count before the permutation, which may exceed n (some removed) and the rows */
     int before = n;
@@ -632,7 +632,7 @@ int history_permute(stf_history *h, const int *perm, int n)
     return 0;
 }
 
-void history_ring_get(const stf_history *h, float *dst, int n)
+void stf_history_ring_get(const stf_history *h, float *dst, int n)
 {
     size_t row = (size_t)n * 3, orow = (size_t)h->n_alloc * 3;
     memset(dst, 0, (size_t)h->cap * row * sizeof *dst);
@@ -643,7 +643,7 @@ void history_ring_get(const stf_history *h, float *dst, int n)
                        h->ring + (size_t)s * orow + 3 * (size_t)r, 3 * sizeof *dst);
 }
 
-int history_ring_set(stf_history *h, const float *src, int n)
+int stf_history_ring_set(stf_history *h, const float *src, int n)
 {
     if (n > h->n_alloc) return -1;
     size_t row = (size_t)n * 3, orow = (size_t)h->n_alloc * 3;
@@ -659,9 +659,9 @@ int history_ring_set(stf_history *h, const float *src, int n)
     return 0;
 }
 
-size_t history_bytes(const stf_history *h)
+size_t stf_history_bytes(const stf_history *h)
 {
-    if (h->terms) return history_soe_bytes(h);
+    if (h->terms) return stf_history_soe_bytes(h);
     return (size_t)h->n_alloc *
                ((size_t)h->cap * 3 * sizeof(float) + 3 * sizeof(double) + sizeof(int)) +
            (size_t)h->cap * sizeof(double) +
@@ -669,7 +669,7 @@ size_t history_bytes(const stf_history *h)
            (h->old ? old_count(h, h->n_old) * sizeof(double) : 0);
 }
 
-int history_set_slots(stf_history *h, int cap)
+int stf_history_set_slots(stf_history *h, int cap)
 {
     while (h->window == 0 && h->cap < cap)
         if (grow_slots(h) != 0) return -1;

@@ -27,7 +27,7 @@ typedef struct stf_history {
     double *w;    /* cap interior weights by lag: w[0] = 1, w[k] = a_{n-k,n} for 0 < k < n */
     float *wf;    /* window mode: w rounded to float32, then HIST_TBLOCK zeros (history.c) */
     double *D;    /* 3 n: sum_p a_{p,n} v_p (m/s), without the dt^(1-q)/Gamma(3-q) factor */
-    /* window mode, time blocks (history.c, history_derivative): the parts of the block's
+    /* window mode, time blocks (history.c, stf_history_derivative): the parts of the block's
      * tblock sums that come from samples older than the block, taken in one pass over the
      * ring at the block's start, and from its finished sub-blocks (a pure function of the
      * ring: recomputed, never saved) */
@@ -45,47 +45,47 @@ typedef struct stf_history {
 } stf_history;
 
 /* window = d steps (>= 1), or 0 for full history. Returns 0, -1 when out of memory. */
-int history_init(stf_history *h, double q, int window, int n);
-void history_free(stf_history *h);
+int stf_history_init(stf_history *h, double q, int window, int n);
+void stf_history_free(stf_history *h);
 /* Grows the particle count to n (new particles have a zero past). */
-int history_resize(stf_history *h, int n);
+int stf_history_resize(stf_history *h, int n);
 /* realloc of p from old_n to new_n elements of size bytes, the new ones zeroed; NULL (p
  * untouched) when out of memory. */
-void *history_grow_zeroed(void *p, size_t old_n, size_t new_n, size_t size);
+void *stf_history_grow_zeroed(void *p, size_t old_n, size_t new_n, size_t size);
 /* Stores v (3n) as the newest sample. */
-int history_push(stf_history *h, const double *v, int n);
+int stf_history_push(stf_history *h, const double *v, int n);
 /* Computes D for every particle from the stored samples. */
-void history_derivative(stf_history *h, int n);
+void stf_history_derivative(stf_history *h, int n);
 /* dt^(1-q) / Gamma(3-q): the factor that turns D into D^q x (m/s^q). */
-double history_scale(double q, double dt);
+double stf_history_scale(double q, double dt);
 /* A bound on |D - sum_p a_{p,n} v_p| / sum_p |a_{p,n} v_p| for the samples as stored (float32),
- * for the latest history_derivative: the roundings of the sum (window mode in steady state:
+ * for the latest stf_history_derivative: the roundings of the sum (window mode in steady state:
  * float products summed in short runs, about 1e-6; otherwise double, about d 1e-16). */
-double history_error_bound(const stf_history *h);
+double stf_history_error_bound(const stf_history *h);
 /* The window's sums use the CPU's vector unit up to `level`: 2 AVX-512, 1 AVX2 (each with
  * FMA), 0 the plain C code (all give the same bits); -1 leaves it. Process-wide, default 2 (tests compare the
  * levels). Returns the level in use (the highest the CPU has, at most `level`). */
-int history_simd(int level);
+int stf_history_simd(int level);
 /* Reorders particles: new index i takes old index perm[i] (n fewer than before: the others
  * are removed). perm may name particles added since the last push (no samples yet). */
-int history_permute(stf_history *h, const int *perm, int n);
+int stf_history_permute(stf_history *h, const int *perm, int n);
 /* The ring as a checkpoint stores it: cap slots of 3 n floats, slot s as the ring's slot s,
  * particles in their order (particles without a sample: zero). */
-void history_ring_get(const stf_history *h, float *dst, int n);
+void stf_history_ring_get(const stf_history *h, float *dst, int n);
 /* Loads that; n <= the particles the ring holds. 0 / -1. */
-int history_ring_set(stf_history *h, const float *src, int n);
-size_t history_bytes(const stf_history *h);
+int stf_history_ring_set(stf_history *h, const float *src, int n);
+size_t stf_history_bytes(const stf_history *h);
 /* Full history: grows the ring to cap slots per particle (doubling, as pushes do), for a
  * checkpoint that had that many. 0 / -1. */
-int history_set_slots(stf_history *h, int cap);
+int stf_history_set_slots(stf_history *h, int cap);
 
 /* history_soe.c: Eq. 3 over the full history with the interior weights fitted by `terms`
  * exponentials (O(terms) time and memory per particle, whatever the history length). */
-int history_soe_init(stf_history *h, double q, int terms, int n);
-int history_soe_fit(double q, int K, double *r, double *c); /* w_k ~ sum c_j r_j^(k-1) */
-int history_soe_resize(stf_history *h, int n);
-void history_soe_push(stf_history *h, const double *v, int n); /* also computes D */
-int history_soe_permute(stf_history *h, const int *perm, int n);
-size_t history_soe_bytes(const stf_history *h);
+int stf_history_soe_init(stf_history *h, double q, int terms, int n);
+int stf_history_soe_fit(double q, int K, double *r, double *c); /* w_k ~ sum c_j r_j^(k-1) */
+int stf_history_soe_resize(stf_history *h, int n);
+void stf_history_soe_push(stf_history *h, const double *v, int n); /* also computes D */
+int stf_history_soe_permute(stf_history *h, const int *perm, int n);
+size_t stf_history_soe_bytes(const stf_history *h);
 
 #endif

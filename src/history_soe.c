@@ -68,7 +68,7 @@ static int lstsq(double *A, double *b, int m, int K, double *x)
     return 0;
 }
 
-int history_soe_fit(double q, int K, double *r, double *c)
+int stf_history_soe_fit(double q, int K, double *r, double *c)
 {
     int m = 0, cap = 200 + 400 + 1;
     double *lag = malloc((size_t)cap * sizeof *lag);
@@ -101,7 +101,7 @@ out:
     return rc;
 }
 
-int history_soe_init(stf_history *h, double q, int terms, int n)
+int stf_history_soe_init(stf_history *h, double q, int terms, int n)
 {
     memset(h, 0, sizeof *h);
     h->q = q;
@@ -113,23 +113,23 @@ int history_soe_init(stf_history *h, double q, int terms, int n)
     h->w = malloc(sizeof *h->w);
     if (!h->soe_r || !h->soe_c || !h->w) return -1;
     h->w[0] = 1.0;
-    if (history_soe_fit(q, terms, h->soe_r, h->soe_c) != 0) return -1;
-    return history_resize(h, n);
+    if (stf_history_soe_fit(q, terms, h->soe_r, h->soe_c) != 0) return -1;
+    return stf_history_resize(h, n);
 }
 
-int history_soe_resize(stf_history *h, int n)
+int stf_history_soe_resize(stf_history *h, int n)
 {
     if (n <= h->n_alloc) return 0;
     int cap = n + n / 4 + 16;
     size_t row = (size_t)h->terms * 3;
     size_t old = (size_t)h->n_alloc;
-    double *T = history_grow_zeroed(h->soe_T, old * row, (size_t)cap * row, sizeof *T);
+    double *T = stf_history_grow_zeroed(h->soe_T, old * row, (size_t)cap * row, sizeof *T);
     if (!T) return -1;
     h->soe_T = T;
-    double *v0 = history_grow_zeroed(h->soe_v0, old * 3, (size_t)cap * 3, sizeof *v0);
+    double *v0 = stf_history_grow_zeroed(h->soe_v0, old * 3, (size_t)cap * 3, sizeof *v0);
     if (!v0) return -1;
     h->soe_v0 = v0;
-    double *D = history_grow_zeroed(h->D, old * 3, (size_t)cap * 3, sizeof *D);
+    double *D = stf_history_grow_zeroed(h->D, old * 3, (size_t)cap * 3, sizeof *D);
     if (!D) return -1;
     h->D = D;
     h->n_alloc = cap;
@@ -137,7 +137,7 @@ int history_soe_resize(stf_history *h, int n)
 }
 
 /* D_n from T(n), then T(n+1) = v_n + r T(n) (v_0 is the end point, never in T). */
-void history_soe_push(stf_history *h, const double *v, int n)
+void stf_history_soe_push(stf_history *h, const double *v, int n)
 {
     long step = h->pushed++;
     h->head = 0;
@@ -161,7 +161,7 @@ void history_soe_push(stf_history *h, const double *v, int n)
     }
 }
 
-int history_soe_permute(stf_history *h, const int *perm, int n)
+int stf_history_soe_permute(stf_history *h, const int *perm, int n)
 {
     size_t row = (size_t)h->terms * 3;
     double *T = malloc((size_t)h->n_alloc * row * sizeof *T);
@@ -185,7 +185,7 @@ int history_soe_permute(stf_history *h, const int *perm, int n)
     return 0;
 }
 
-size_t history_soe_bytes(const stf_history *h)
+size_t stf_history_soe_bytes(const stf_history *h)
 {
     return (size_t)h->n_alloc * ((size_t)h->terms * 3 + 3 + 3) * sizeof(double) +
            2 * (size_t)h->terms * sizeof(double);

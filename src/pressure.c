@@ -19,7 +19,7 @@
 
 enum { W_RHO, W_RHO_NEAR, W_F1, W_F2, W_A, W_B, W_COUNT };
 
-void pressure_wall_table(stf_fluid *f)
+void stf_pressure_wall_table(stf_fluid *f)
 {
     double s = f->def.spacing, h = f->h;
     int m = (int)ceil(h / s) + 1;
@@ -125,7 +125,7 @@ static void density_one(stf_fluid *f, int i)
     for (int c = 0; c < f->ncolliders; c++) {
         double nrm[3], w[W_COUNT];
         if (wall_far(&f->colliders[c], x + 3 * i, h)) continue;
-        double d = collider_sdf(&f->colliders[c], x + 3 * i, nrm);
+        double d = stf_collider_sdf(&f->colliders[c], x + 3 * i, nrm);
         if (d >= h) continue;
         wall_sums(f, d, w);
         rho += w[W_RHO];
@@ -223,7 +223,7 @@ static int wall_push_one(stf_fluid *f, const collider *c, int i, double dt, doub
 {
     double nrm[3], w[W_COUNT];
     if (wall_far(c, f->x + 3 * i, f->h)) return 0;
-    double d = collider_sdf(c, f->x + 3 * i, nrm);
+    double d = stf_collider_sdf(c, f->x + 3 * i, nrm);
     if (d >= f->h) return 0;
     wall_sums(f, d, w);
     const double *G = f->grad_p;
@@ -237,7 +237,7 @@ static int wall_push_one(stf_fluid *f, const collider *c, int i, double dt, doub
     return 1;
 }
 
-void pressure_relax(stf_fluid *f, double dt)
+void stf_pressure_relax(stf_fluid *f, double dt)
 {
     int n = f->n;
     /* Dynamic chunks: each particle's result depends on the inputs only, not on the thread
@@ -272,7 +272,7 @@ void pressure_relax(stf_fluid *f, double dt)
                 }
         }
         /* at xprev: a displacement turns the particle about its position at the step's
-           start (collider_take_reaction) */
-        collider_take_reaction(col, f->dx, f->xprev, hit, n);
+           start (stf_collider_take_reaction) */
+        stf_collider_take_reaction(col, f->dx, f->xprev, hit, n);
     }
 }

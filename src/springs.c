@@ -23,15 +23,15 @@ static int alloc_rows(stf_springs *s, int n_alloc, int stride)
     return p && p2 && r && r2 ? 0 : -1;
 }
 
-int springs_init(stf_springs *s, int n)
+int stf_springs_init(stf_springs *s, int n)
 {
     memset(s, 0, sizeof *s);
     s->stride = 32;
     s->nthreads = omp_get_max_threads();
-    return springs_resize(s, n);
+    return stf_springs_resize(s, n);
 }
 
-void springs_free(stf_springs *s)
+void stf_springs_free(stf_springs *s)
 {
     free(s->partner);
     free(s->partner2);
@@ -45,7 +45,7 @@ void springs_free(stf_springs *s)
     memset(s, 0, sizeof *s);
 }
 
-int springs_resize(stf_springs *s, int n)
+int stf_springs_resize(stf_springs *s, int n)
 {
     if (n <= s->n_alloc) return 0;
     int cap = n + n / 4 + 16;
@@ -138,7 +138,7 @@ typedef struct spring_acc {
 } spring_acc;
 
 /* A thread's springs that did not fit their particle's row (stride slots), in order; they
- * are appended once the rows are widened (springs_step). */
+ * are appended once the rows are widened (stf_springs_step). */
 typedef struct spring_spill {
     struct spilled {
         int32_t i, j;
@@ -356,7 +356,7 @@ static void saturated_one(stf_fluid *f, int i, double dt, double khist_scale, co
     for (int a = 0; a < 3; a++) f->dx[3 * i + a] = d[a];
 }
 
-int springs_step(stf_fluid *f, double dt)
+int stf_springs_step(stf_fluid *f, double dt)
 {
     stf_springs *s = &f->springs;
     int n = f->n;
@@ -368,7 +368,7 @@ int springs_step(stf_fluid *f, double dt)
         for (size_t k = 0; k < (size_t)s->n_alloc * (size_t)s->nthreads; k++) s->mark[k] = -1;
     }
     double khist_scale = has(f, STF_EFFECT_HISTORY)
-                             ? f->def.k_hist * history_scale(f->def.q, dt)
+                             ? f->def.k_hist * stf_history_scale(f->def.q, dt)
                              : 0.0;
     if (f->def.reference_spacing > 0) khist_scale *= f->def.reference_spacing / f->def.spacing;
     double most_gain = 0; /* the largest sum of gains (saturated_one) */
@@ -381,7 +381,7 @@ int springs_step(stf_fluid *f, double dt)
         int64_t *mark = s->mark + (size_t)omp_get_thread_num() * (size_t)s->n_alloc;
         spring_spill *sp = &spills[omp_get_thread_num()];
         spring_chunk ch;
-        /* dynamic chunks (see pressure_relax): the stamps are per particle, so a particle's
+        /* dynamic chunks (see stf_pressure_relax): the stamps are per particle, so a particle's
            marks do not depend on which thread's array holds them */
 #pragma omp for schedule(dynamic, 256)
         for (int i = 0; i < n; i++) {
@@ -414,7 +414,7 @@ int springs_step(stf_fluid *f, double dt)
     free(spills);
     if (rc != 0) return -1;
     s->max_gain = most_gain;
-    if (f->gs) return gs_springs(f, dt, khist_scale); /* constraints instead (gauss_seidel.c) */
+    if (f->gs) return stf_gs_springs(f, dt, khist_scale); /* constraints instead (gauss_seidel.c) */
     if (most_gain > 1.0) { /* saturate (see saturated_one); the common case costs nothing more */
 #pragma omp parallel for schedule(static)
         for (int i = 0; i < n; i++) {
@@ -431,7 +431,7 @@ int springs_step(stf_fluid *f, double dt)
     return 0;
 }
 
-int springs_permute(stf_springs *s, const int32_t *perm, const int32_t *inv, int n)
+int stf_springs_permute(stf_springs *s, const int32_t *perm, const int32_t *inv, int n)
 {
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) {
@@ -455,20 +455,20 @@ int springs_permute(stf_springs *s, const int32_t *perm, const int32_t *inv, int
     return 0;
 }
 
-long springs_total(const stf_springs *s, int n)
+long stf_springs_total(const stf_springs *s, int n)
 {
     long t = 0;
     for (int i = 0; i < n; i++) t += s->count[i];
     return t / 2;
 }
 
-size_t springs_bytes(const stf_springs *s)
+size_t stf_springs_bytes(const stf_springs *s)
 {
     return (size_t)s->n_alloc * ((size_t)s->stride * 2 * (sizeof(int32_t) + sizeof(double)) +
                                  2 * sizeof(int32_t) + (size_t)s->nthreads * sizeof(int64_t) + sizeof(double));
 }
 
-int springs_reserve_stride(stf_springs *s, int n, int stride)
+int stf_springs_reserve_stride(stf_springs *s, int n, int stride)
 {
     return stride > s->stride ? widen(s, n, stride) : 0;
 }

@@ -16,7 +16,7 @@ typedef struct stf_springs {
     double *rest;     /* n_alloc * stride: rest lengths L, m */
     int32_t *count;   /* n_alloc */
     int32_t *partner2, *count2; /* count2: the step's new counts (then swapped with count);
-                                   partner2, rest2: springs_permute's scratch (the step
+                                   partner2, rest2: stf_springs_permute's scratch (the step
                                    rewrites the rows in place) */
     double *rest2;
     int64_t *mark;    /* nthreads * n_alloc: which particle last saw a spring to j */
@@ -32,17 +32,17 @@ typedef struct stf_springs {
 } stf_springs;
 
 struct stf_fluid;
-int springs_init(stf_springs *s, int n);
-void springs_free(stf_springs *s);
-int springs_resize(stf_springs *s, int n);
+int stf_springs_init(stf_springs *s, int n);
+void stf_springs_free(stf_springs *s);
+int stf_springs_resize(stf_springs *s, int n);
 /* Alg. 4 (add/remove springs, plasticity) and Alg. 3 (displacements, with Eq. 6 stiffness
  * when the history effect is on), on the predicted positions. Returns 0, -1 out of memory. */
-int springs_step(struct stf_fluid *f, double dt);
-int springs_permute(stf_springs *s, const int32_t *perm, const int32_t *inv, int n);
-long springs_total(const stf_springs *s, int n);
-size_t springs_bytes(const stf_springs *s);
+int stf_springs_step(struct stf_fluid *f, double dt);
+int stf_springs_permute(stf_springs *s, const int32_t *perm, const int32_t *inv, int n);
+long stf_springs_total(const stf_springs *s, int n);
+size_t stf_springs_bytes(const stf_springs *s);
 /* Widens the rows of n particles to stride slots if they are narrower (checkpoints restore
  * the stride they had). 0 / -1. */
-int springs_reserve_stride(stf_springs *s, int n, int stride);
+int stf_springs_reserve_stride(stf_springs *s, int n, int stride);
 
 #endif

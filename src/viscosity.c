@@ -55,10 +55,10 @@ static void gather_one(stf_fluid *f, int i, double dt)
     f->dx[3 * i + 2] = az;
 }
 
-void viscosity_apply(stf_fluid *f, double dt)
+void stf_viscosity_apply(stf_fluid *f, double dt)
 {
     int n = f->n;
-    /* dynamic chunks: the results do not depend on the thread (see pressure_relax) */
+    /* dynamic chunks: the results do not depend on the thread (see stf_pressure_relax) */
 #pragma omp parallel for schedule(dynamic, 256)
     for (int i = 0; i < n; i++) gather_one(f, i, dt);
 #pragma omp parallel for schedule(static)

@@ -87,7 +87,7 @@ static void test_verlet(void)
     const double h = 0.06, none[3] = {0, 0, 0};
     double *x = cloud(n, h);
     stf_grid g = {0};
-    CHECK(grid_build(&g, x, n, h) == 0, "build");
+    CHECK(stf_grid_build(&g, x, n, h) == 0, "build");
     CHECK(wrong_rows(&g, x, n, h, none) == 0, "first build");
     int most = 0;
     for (int i = 0; i < n; i++) most = g.count[i] > most ? g.count[i] : most;
@@ -99,9 +99,9 @@ static void test_verlet(void)
     for (int step = 0; step < 12; step++) {
         for (int k = 0; k < 3 * n; k++) x[k] += 0.004 * h * (uniform() - 0.5);
         x[3 * (step * 131 % n)] += 0.3 * h * (step % 4 == 3); /* now and then one jumps */
-        int due = grid_due(&g, x, n, h);
+        int due = stf_grid_due(&g, x, n, h);
         reused += !due;
-        CHECK(grid_build(&g, x, n, h) == 0, "build");
+        CHECK(stf_grid_build(&g, x, n, h) == 0, "build");
         CHECK(wrong_rows(&g, x, n, h, none) == 0, "step %d (due %d)", step, due);
     }
     CHECK(reused > 0, "the candidates were never reused");
@@ -110,7 +110,7 @@ static void test_verlet(void)
     long rebuilds1 = g.rebuilds;
     for (int step = 0; step < 30; step++) {
         for (int i = 0; i < n; i++) x[3 * i] += 0.1 * h, x[3 * i + 2] -= 0.05 * h;
-        CHECK(grid_build(&g, x, n, h) == 0, "build");
+        CHECK(stf_grid_build(&g, x, n, h) == 0, "build");
     }
     CHECK(g.rebuilds == rebuilds1, "a uniform translation rebuilt the lists %ld times",
           g.rebuilds - rebuilds1);
@@ -119,18 +119,18 @@ static void test_verlet(void)
     int due = 0;
     for (int step = 0; step < 10 && !due; step++) {
         for (int i = 0; i < n; i++) x[3 * i] += 0.2 * x[3 * i + 1];
-        due = grid_due(&g, x, n, h);
-        CHECK(grid_build(&g, x, n, h) == 0, "build");
+        due = stf_grid_due(&g, x, n, h);
+        CHECK(stf_grid_build(&g, x, n, h) == 0, "build");
         CHECK(wrong_rows(&g, x, n, h, none) == 0, "shear step %d", step);
     }
     CHECK(due, "a shear of 20%% a step never asked for a rebuild");
     /* a slip along a plane between two layers of cells: everything above it jumps 0.6 h
        along it, each cell moving as a whole */
     for (int i = 0; i < n; i++) x[3 * i] += 0.6 * h * (floor(x[3 * i + 1] * (1.0 / g.cell)) >= 1);
-    CHECK(grid_due(&g, x, n, h), "a slip of 0.6 h did not ask for a rebuild");
-    CHECK(grid_build(&g, x, n, h) == 0, "build");
+    CHECK(stf_grid_due(&g, x, n, h), "a slip of 0.6 h did not ask for a rebuild");
+    CHECK(stf_grid_build(&g, x, n, h) == 0, "build");
     CHECK(wrong_rows(&g, x, n, h, none) == 0, "after the slip");
-    grid_free(&g);
+    stf_grid_free(&g);
     free(x);
 }
 
@@ -141,13 +141,13 @@ static void test_two_cells(void)
     const double h = 0.1, none[3] = {0, 0, 0}; /* default skin: candidates within 0.125 */
     double x[6] = {0.0, 0.12, 0.06, 0.126, 0.13, 0.06};
     stf_grid g = {0};
-    CHECK(grid_build(&g, x, 2, h) == 0, "build");
+    CHECK(stf_grid_build(&g, x, 2, h) == 0, "build");
     CHECK(g.ccount[0] == 0, "0.1264 apart: not candidates");
     x[3] -= 0.03; /* now 0.0965 apart: neighbours, after a relative move of 0.3 h */
-    CHECK(grid_due(&g, x, 2, h), "a relative move of 0.3 h across two cells: not due");
-    CHECK(grid_build(&g, x, 2, h) == 0, "build");
+    CHECK(stf_grid_due(&g, x, 2, h), "a relative move of 0.3 h across two cells: not due");
+    CHECK(stf_grid_build(&g, x, 2, h) == 0, "build");
     CHECK(wrong_rows(&g, x, 2, h, none) == 0, "two cells");
-    grid_free(&g);
+    stf_grid_free(&g);
 }
 
 static void test_threads_and_paths(void)
@@ -159,22 +159,22 @@ static void test_threads_and_paths(void)
     plain.plain = 1;
     int threads = omp_get_max_threads();
     omp_set_num_threads(1);
-    CHECK(grid_build(&one, x, n, h) == 0, "build");
-    CHECK(grid_build(&plain, x, n, h) == 0, "build");
+    CHECK(stf_grid_build(&one, x, n, h) == 0, "build");
+    CHECK(stf_grid_build(&plain, x, n, h) == 0, "build");
     omp_set_num_threads(2);
-    CHECK(grid_build(&two, x, n, h) == 0, "build");
+    CHECK(stf_grid_build(&two, x, n, h) == 0, "build");
     omp_set_num_threads(threads);
     CHECK(lists_equal(&one, &two, n), "1 and 2 threads give different lists");
     CHECK(lists_equal(&one, &plain, n), "the AVX2 and plain searches give different lists");
     /* a checkpoint's restore from the reference positions gives the same lists */
     stf_grid back = {0};
-    CHECK(grid_restore(&back, one.xref, n, h, one.skin_used) == 0, "restore");
-    CHECK(grid_build(&back, x, n, h) == 0, "build");
+    CHECK(stf_grid_restore(&back, one.xref, n, h, one.skin_used) == 0, "restore");
+    CHECK(stf_grid_build(&back, x, n, h) == 0, "build");
     CHECK(lists_equal(&one, &back, n), "restored lists differ");
-    grid_free(&one);
-    grid_free(&two);
-    grid_free(&plain);
-    grid_free(&back);
+    stf_grid_free(&one);
+    stf_grid_free(&two);
+    stf_grid_free(&plain);
+    stf_grid_free(&back);
     free(x);
 }
 
@@ -184,7 +184,7 @@ static void test_sort(void)
     const double h = 0.05, none[3] = {0, 0, 0};
     double *x = cloud(n, h), *y = malloc((size_t)n * 3 * sizeof *y);
     stf_grid g = {0};
-    CHECK(grid_sort(&g, x, n, h) == 0, "sort");
+    CHECK(stf_grid_sort(&g, x, n, h) == 0, "sort");
     char *hit = calloc((size_t)n, 1);
     int perm_ok = 1;
     for (int i = 0; i < n; i++) {
@@ -194,12 +194,12 @@ static void test_sort(void)
         memcpy(y + 3 * i, x + 3 * o, 3 * sizeof *y);
     }
     CHECK(perm_ok, "grid_sort's order is not a permutation");
-    CHECK(grid_build(&g, y, n, h) == 0, "build");
+    CHECK(stf_grid_build(&g, y, n, h) == 0, "build");
     CHECK(wrong_rows(&g, y, n, h, none) == 0, "sorted particles");
     free(hit);
     free(y);
     free(x);
-    grid_free(&g);
+    stf_grid_free(&g);
 }
 
 static void test_periodic(void)
@@ -217,9 +217,9 @@ static void test_periodic(void)
     memcpy(g.period, period, sizeof period);
     g.origin[0] = -0.2;
     g.origin[1] = 0.1;
-    CHECK(grid_build(&g, x, n, h) == 0, "build");
+    CHECK(stf_grid_build(&g, x, n, h) == 0, "build");
     CHECK(wrong_rows(&g, x, n, h, period) == 0, "periodic");
-    grid_free(&g);
+    stf_grid_free(&g);
     free(x);
 }
 
@@ -229,13 +229,13 @@ static void test_empty(void)
 {
     const double h = 0.1, none[3] = {0, 0, 0};
     stf_grid g = {0};
-    CHECK(grid_build(&g, NULL, 0, h) == 0, "build of no particles");
-    CHECK(grid_due(&g, NULL, 0, h) == 0, "no particles, nothing moved: due");
-    CHECK(grid_build(&g, NULL, 0, h) == 0, "second build of no particles");
+    CHECK(stf_grid_build(&g, NULL, 0, h) == 0, "build of no particles");
+    CHECK(stf_grid_due(&g, NULL, 0, h) == 0, "no particles, nothing moved: due");
+    CHECK(stf_grid_build(&g, NULL, 0, h) == 0, "second build of no particles");
     double x[6] = {0.0, 0.0, 0.0, 0.05, 0.0, 0.0};
-    CHECK(grid_build(&g, x, 2, h) == 0, "build");
+    CHECK(stf_grid_build(&g, x, 2, h) == 0, "build");
     CHECK(wrong_rows(&g, x, 2, h, none) == 0, "two particles after none");
-    grid_free(&g);
+    stf_grid_free(&g);
 }
 
 /* A restore that runs out of memory (the address space capped with setrlimit: a real
@@ -250,7 +250,7 @@ static void test_restore_out_of_memory(void)
     double *x = cloud(n, h), *dense = malloc((size_t)n * 3 * sizeof *dense);
     for (int i = 0; i < n; i++) dense[3 * i] = dense[3 * i + 1] = dense[3 * i + 2] = 0.3;
     stf_grid g = {0};
-    CHECK(grid_build(&g, x, n, h) == 0, "build");
+    CHECK(stf_grid_build(&g, x, n, h) == 0, "build");
     long pages = 0;
     FILE *f = fopen("/proc/self/statm", "r");
     if (f && fscanf(f, "%ld", &pages) == 1) {
@@ -259,15 +259,15 @@ static void test_restore_out_of_memory(void)
         cap = old;
         cap.rlim_cur = (rlim_t)pages * 4096 + (32u << 20); /* n^2 candidates need 64 MB */
         if (cap.rlim_cur < old.rlim_cur && setrlimit(RLIMIT_AS, &cap) == 0) {
-            int rc = grid_restore(&g, dense, n, h, 0.25);
+            int rc = stf_grid_restore(&g, dense, n, h, 0.25);
             setrlimit(RLIMIT_AS, &old);
             CHECK(rc == -1, "restoring 16 M candidates under a 32 MB cap succeeded");
-            CHECK(grid_build(&g, x, n, h) == 0, "build after the failed restore");
+            CHECK(stf_grid_build(&g, x, n, h) == 0, "build after the failed restore");
             CHECK(wrong_rows(&g, x, n, h, none) == 0, "rows after a failed restore");
         }
     }
     if (f) fclose(f);
-    grid_free(&g);
+    stf_grid_free(&g);
     free(dense);
     free(x);
 #endif
@@ -320,13 +320,13 @@ static void test_gained(void)
         double *x = cloud(n, h);
         stf_grid g = {0};
         g.plain = plain;
-        CHECK(grid_build(&g, x, n, h) == 0, "build");
+        CHECK(stf_grid_build(&g, x, n, h) == 0, "build");
         int *ocount = malloc((size_t)n * sizeof *ocount), reused = 0, some_kept = 0;
         for (int step = 0; step < 16; step++) {
             int32_t *old = copy_rows(&g, n, cap, ocount);
             for (int k = 0; k < 3 * n; k++) x[k] += 0.01 * h * (uniform() - 0.5);
             long r0 = g.rebuilds;
-            CHECK(grid_build(&g, x, n, h) == 0, "build");
+            CHECK(stf_grid_build(&g, x, n, h) == 0, "build");
             int rebuilt = g.rebuilds != r0;
             reused += !rebuilt;
             for (int i = 0; i < n && !rebuilt; i++) some_kept += !g.gained[i];
@@ -336,7 +336,7 @@ static void test_gained(void)
         }
         CHECK(reused > 0 && some_kept > 0, "no step reused the candidates with a row unchanged");
         free(ocount);
-        grid_free(&g);
+        stf_grid_free(&g);
         free(x);
     }
 }

@@ -21,7 +21,7 @@
  * old_chunk): with u = 2^-24, the weight and the product are rounded once each (2u) and a
  * run's sum at most 15 times (15u), so |D - Eq. 3| <= gamma_17 S + (double terms), where
  * S = sum |a_{p,n} v_p| and gamma_k = k u / (1 - k u) (Higham, 3.1): 1.01e-6 S. That bound is
- * history_error_bound(); a test fails above it (a wrong weight, lag or sample gives an error
+ * stf_history_error_bound(); a test fails above it (a wrong weight, lag or sample gives an error
  * of order S). With all v_p of one sign, S = |D|.
  */
 #include "history.h"
@@ -103,22 +103,22 @@ static void test_constant_velocity_direct(void)
     }
 }
 
-/* Through the library: history_init/push/derivative with a full history (window 0). */
+/* Through the library: stf_history_init/push/derivative with a full history (window 0). */
 static void test_constant_velocity_library(void)
 {
     const double dt = 1e-3;
     const int np = 3; /* three particles with different constant velocities */
     /* float32 ring: use values float represents exactly */
     const double v[9] = {0.75, -0.5, 2.0, 0.0, 1.25, -3.0, 0.125, 0.0, 0.0};
-    CHECK_NEAR(history_scale(0.5, dt), pow(dt, 0.5) / tgamma(2.5), 1e-18, "history_scale");
+    CHECK_NEAR(stf_history_scale(0.5, dt), pow(dt, 0.5) / tgamma(2.5), 1e-18, "history_scale");
     for (int iq = 0; iq < 3; iq++) {
         double q = qs[iq], worst = 0;
         stf_history h;
-        CHECK(history_init(&h, q, 0, np) == 0, "history_init q=%g", q);
-        double scale = history_scale(q, dt);
+        CHECK(stf_history_init(&h, q, 0, np) == 0, "history_init q=%g", q);
+        double scale = stf_history_scale(q, dt);
         for (long n = 0; n <= 2000; n++) {
-            CHECK(history_push(&h, v, np) == 0, "push %ld", n);
-            history_derivative(&h, np);
+            CHECK(stf_history_push(&h, v, np) == 0, "push %ld", n);
+            stf_history_derivative(&h, np);
             if (n == 0) {
                 /* one sample: a_{0,0} = 1 */
                 for (int c = 0; c < 3 * np; c++) CHECK_NEAR(h.D[c], v[c], 0.0, "D after 1 sample");
@@ -135,7 +135,7 @@ static void test_constant_velocity_library(void)
         }
         printf("library full history, q=%.1f: worst relative error %.3g over 2000 steps\n", q,
                worst);
-        history_free(&h);
+        stf_history_free(&h);
     }
 }
 
@@ -147,20 +147,20 @@ static void test_linear_velocity_library(void)
     for (int iq = 0; iq < 3; iq++) {
         double q = qs[iq], worst = 0;
         stf_history h;
-        CHECK(history_init(&h, q, 0, 1) == 0, "init");
+        CHECK(stf_history_init(&h, q, 0, 1) == 0, "init");
         for (long n = 0; n <= 1000; n++) {
             double vv[3] = {(double)n * dt, 0, 0};
-            history_push(&h, vv, 1);
-            history_derivative(&h, 1);
+            stf_history_push(&h, vv, 1);
+            stf_history_derivative(&h, 1);
             if (n < 1) continue;
             double t = (double)n * dt;
-            double got = history_scale(q, dt) * h.D[0], want = pow(t, 2.0 - q) / tgamma(3.0 - q);
+            double got = stf_history_scale(q, dt) * h.D[0], want = pow(t, 2.0 - q) / tgamma(3.0 - q);
             double rel = fabs(got - want) / want;
             if (rel > worst) worst = rel;
             CHECK(rel <= 1e-11, "ramp q=%g n=%ld: %.17g vs %.17g (rel %.3g)", q, n, got, want, rel);
         }
         printf("library ramp, q=%.1f: worst relative error %.3g\n", q, worst);
-        history_free(&h);
+        stf_history_free(&h);
     }
 }
 
@@ -173,8 +173,8 @@ static void test_window(void)
         for (size_t id = 0; id < sizeof ds / sizeof ds[0]; id++) {
             int d = ds[id];
             stf_history hw, hf;
-            CHECK(history_init(&hw, q, d, 1) == 0, "init window");
-            CHECK(history_init(&hf, q, 0, 1) == 0, "init full");
+            CHECK(stf_history_init(&hw, q, d, 1) == 0, "init window");
+            CHECK(stf_history_init(&hf, q, 0, 1) == 0, "init full");
             double truncated = 0; /* sum_{k=0..d} w_k, interior weights by lag */
             for (int k = 0; k <= d; k++) truncated += k == 0 ? 1.0 : stf_history_weight(q, 1, k + 1);
             double closed = pow(d + 1.0, 2.0 - q) - pow((double)d, 2.0 - q);
@@ -183,23 +183,23 @@ static void test_window(void)
                   truncated, closed);
             int total = 3 * d + 20;
             for (int s = 1; s <= total; s++) {
-                history_push(&hw, v, 1);
-                history_push(&hf, v, 1);
-                history_derivative(&hw, 1);
-                history_derivative(&hf, 1);
+                stf_history_push(&hw, v, 1);
+                stf_history_push(&hf, v, 1);
+                stf_history_derivative(&hw, 1);
+                stf_history_derivative(&hf, 1);
                 long n = s - 1; /* index of the newest sample */
                 if (s <= d + 1) {
                     /* The window holds everything so far: the full history, to the window's
                        error bound (a long window sums in float32 blocks from the start; the
                        terms have one sign, so S = |D|), 1e-13 the reference's rounding. */
-                    double tol = history_error_bound(&hw) + 1e-13;
+                    double tol = stf_history_error_bound(&hw) + 1e-13;
                     for (int c = 0; c < 3; c++)
                         CHECK(fabs(hw.D[c] - hf.D[c]) <= tol * fabs(hf.D[c]),
                               "q=%g d=%d n=%ld: window %.17g vs full %.17g before it fills", q, d,
                               n, hw.D[c], hf.D[c]);
                 } else {
                     /* terms of one sign: S = |want|; 1e-13: the reference's own rounding */
-                    double tol = history_error_bound(&hw) + 1e-13;
+                    double tol = stf_history_error_bound(&hw) + 1e-13;
                     CHECK(tol < (d > 16 ? 1.1e-6 : 1e-12), "q=%g d=%d: error bound %.3g", q, d,
                           tol);
                     for (int c = 0; c < 3; c++) {
@@ -218,8 +218,8 @@ static void test_window(void)
             double full_sum = (2.0 - q) * pow((double)(total - 1), 1.0 - q);
             CHECK(fabs(hf.D[0] - v[0] * full_sum) <= 1e-12 * full_sum * v[0],
                   "full sum %.17g vs (2-q) n^(1-q) v = %.17g", hf.D[0], v[0] * full_sum);
-            history_free(&hw);
-            history_free(&hf);
+            stf_history_free(&hw);
+            stf_history_free(&hf);
         }
     }
 }
@@ -240,20 +240,20 @@ static void test_window_blocked(int D, int T, int FLIP)
                 sig[t][i][c] = (float)(sin(0.37 * t + 1.3 * i + 2.1 * c) + 0.01 * (t % 7) - 0.2 * c);
     /* (float: the ring keeps float32 samples, so the reference sums the same values) */
     stf_history h;
-    CHECK(history_init(&h, q, D, NP) == 0, "init");
+    CHECK(stf_history_init(&h, q, D, NP) == 0, "init");
     int perm[NP], at[NP]; /* at[k]: original particle held at index k */
     for (int k = 0; k < NP; k++) at[k] = k, perm[k] = NP - 1 - k;
     double worst = 0;
     for (int t = 0; t < T; t++) {
         if (t == FLIP) {
-            CHECK(history_permute(&h, perm, NP) == 0, "permute");
+            CHECK(stf_history_permute(&h, perm, NP) == 0, "permute");
             for (int k = 0; k < NP; k++) at[k] = NP - 1 - k;
         }
         double v[NP * 3];
         for (int k = 0; k < NP; k++)
             for (int c = 0; c < 3; c++) v[3 * k + c] = sig[t][at[k]][c];
-        CHECK(history_push(&h, v, NP) == 0, "push");
-        history_derivative(&h, NP);
+        CHECK(stf_history_push(&h, v, NP) == 0, "push");
+        stf_history_derivative(&h, NP);
         for (int k = 0; k < NP; k++)
             for (int c = 0; c < 3; c++) {
                 double want = 0, scale = 0;
@@ -273,11 +273,11 @@ static void test_window_blocked(int D, int T, int FLIP)
             }
     }
     /* the library's rounding (header comment) plus the reference's, D + 2 double terms */
-    double bound = history_error_bound(&h) + 1e-13;
+    double bound = stf_history_error_bound(&h) + 1e-13;
     CHECK(worst <= bound, "blocked window sum: worst error %.3g S, bound %.3g S", worst, bound);
     printf("test_history: blocked window sum (d = %d, %d samples, re-sort mid-block): worst "
            "error %.2g S (bound %.2g S, S = sum |a v|)\n", D, T, worst, bound);
-    history_free(&h);
+    stf_history_free(&h);
 }
 
 /* The sum for a sample is a function of the samples alone: a twin whose block's older part
@@ -288,26 +288,26 @@ static void test_window_recompute(int D, int T, int RESIZE)
 {
     enum { NP = 37 };
     const double q = 0.5;
-    int best = history_simd(-1);
+    int best = stf_history_simd(-1);
     stf_history a, b, c[3];
-    CHECK(history_init(&a, q, D, NP) == 0 && history_init(&b, q, D, NP) == 0, "init");
-    for (int l = 0; l < best; l++) CHECK(history_init(&c[l], q, D, NP) == 0, "init");
+    CHECK(stf_history_init(&a, q, D, NP) == 0 && stf_history_init(&b, q, D, NP) == 0, "init");
+    for (int l = 0; l < best; l++) CHECK(stf_history_init(&c[l], q, D, NP) == 0, "init");
     long differ_b = 0, differ_c[3] = {0}, checked = 0;
     for (int t = 0; t < T; t++) {
         double v[NP * 3];
         for (int e = 0; e < 3 * NP; e++) v[e] = sin(0.11 * t + 0.7 * e) * (1 + e % 5);
-        if (t == RESIZE) CHECK(history_resize(&b, 4 * NP) == 0, "resize");
-        history_push(&a, v, NP), history_push(&b, v, NP);
-        history_derivative(&a, NP);
+        if (t == RESIZE) CHECK(stf_history_resize(&b, 4 * NP) == 0, "resize");
+        stf_history_push(&a, v, NP), stf_history_push(&b, v, NP);
+        stf_history_derivative(&a, NP);
         stf_set_threads(2);
-        history_derivative(&b, NP);
+        stf_history_derivative(&b, NP);
         stf_set_threads(1);
         for (int l = 0; l < best; l++) { /* a = the best level */
-            history_simd(l);
-            history_push(&c[l], v, NP);
-            history_derivative(&c[l], NP);
+            stf_history_simd(l);
+            stf_history_push(&c[l], v, NP);
+            stf_history_derivative(&c[l], NP);
         }
-        history_simd(2);
+        stf_history_simd(2);
         if (t <= D) continue;
         for (int e = 0; e < 3 * NP; e++) {
             differ_b += memcmp(&a.D[e], &b.D[e], sizeof(double)) != 0;
@@ -323,11 +323,11 @@ static void test_window_recompute(int D, int T, int RESIZE)
               differ_c[l], checked, best, l);
     printf("test_history: d = %d, resize at sample %d, 2 threads, vector levels 0..%d (0: plain "
            "C, 1: AVX2, 2: AVX-512): %ld sums bit-identical\n", D, RESIZE, best, checked);
-    history_free(&a), history_free(&b);
-    for (int l = 0; l < best; l++) history_free(&c[l]);
+    stf_history_free(&a), stf_history_free(&b);
+    for (int l = 0; l < best; l++) stf_history_free(&c[l]);
 }
 
-/* history_permute(h, map, n) with at (the tracked identity of each of h's particles)
+/* stf_history_permute(h, map, n) with at (the tracked identity of each of h's particles)
  * permuted alike: at[k] becomes at[map[k]]. */
 static void permute_tracked(stf_history *h, int *at, const int *map, int n, const char *what)
 {
@@ -336,10 +336,10 @@ static void permute_tracked(stf_history *h, int *at, const int *map, int n, cons
     for (int k = 0; k < n; k++) nat[k] = at[map[k]];
     memcpy(at, nat, (size_t)n * sizeof *nat);
     free(nat);
-    CHECK(history_permute(h, map, n) == 0, "%s", what);
+    CHECK(stf_history_permute(h, map, n) == 0, "%s", what);
 }
 
-/* Particles removed (history_permute with fewer particles, the rows gathered again) and
+/* Particles removed (stf_history_permute with fewer particles, the rows gathered again) and
  * re-sorts (only the row -> particle map changes): each kept particle's sums are bit for bit
  * those of a twin that only ever held the kept particles, in their final order. */
 static void test_window_remove(void)
@@ -347,7 +347,7 @@ static void test_window_remove(void)
     enum { NP = 40, KEEP = 25, D = 300, T = 420, SORT = 100, REMOVE = 350 };
     const double q = 0.5;
     stf_history a, b;
-    CHECK(history_init(&a, q, D, NP) == 0 && history_init(&b, q, D, KEEP) == 0, "init");
+    CHECK(stf_history_init(&a, q, D, NP) == 0 && stf_history_init(&b, q, D, KEEP) == 0, "init");
     int at[NP], keep[KEEP], sort[NP]; /* at[k]: original particle at index k of a */
     for (int k = 0; k < NP; k++) at[k] = k, sort[k] = (7 * k + 3) % NP; /* 7 coprime to 40 */
     for (int k = 0; k < KEEP; k++) keep[k] = (3 * k + 1) % NP; /* indices of a at REMOVE */
@@ -369,9 +369,9 @@ static void test_window_remove(void)
             int o = sort[keep[k]];
             for (int c = 0; c < 3; c++) vb[3 * k + c] = sin(0.05 * t + 0.9 * o + c) * (1 + o % 3);
         }
-        CHECK(history_push(&a, va, na) == 0 && history_push(&b, vb, KEEP) == 0, "push");
-        history_derivative(&a, na);
-        history_derivative(&b, KEEP);
+        CHECK(stf_history_push(&a, va, na) == 0 && stf_history_push(&b, vb, KEEP) == 0, "push");
+        stf_history_derivative(&a, na);
+        stf_history_derivative(&b, KEEP);
         if (t < D + 1) continue;
         for (int k = 0; k < KEEP; k++) {
             int ia = t >= REMOVE ? k : keep[k];
@@ -382,7 +382,7 @@ static void test_window_remove(void)
     CHECK(differ == 0, "%ld of %ld sums differ after a re-sort and a removal", differ, checked);
     printf("test_history: re-sort at %d, %d of %d particles removed at %d (d = %d): %ld sums "
            "bit-identical to the kept particles' twin\n", SORT, NP - KEEP, NP, REMOVE, D, checked);
-    history_free(&a), history_free(&b);
+    stf_history_free(&a), stf_history_free(&b);
 }
 
 /* Re-sorts in the middle of blocks (all particles reversed, then neighbours swapped), of a
@@ -394,7 +394,7 @@ static void test_window_resort(int D)
     const int T = D + 140, FAR = D + 41, NEAR = D + 73;
     const double q = 0.7;
     stf_history a, b;
-    CHECK(history_init(&a, q, D, NP) == 0 && history_init(&b, q, D, NP) == 0, "init");
+    CHECK(stf_history_init(&a, q, D, NP) == 0 && stf_history_init(&b, q, D, NP) == 0, "init");
     static int at[NP], perm[NP]; /* at[k]: b's particle at index k of a */
     for (int k = 0; k < NP; k++) at[k] = k;
     static double va[NP * 3], vb[NP * 3];
@@ -412,8 +412,8 @@ static void test_window_resort(int D)
         for (int e = 0; e < 3 * NP; e++) vb[e] = sin(0.13 * t + 0.37 * e) + 0.1 * (e % 7);
         for (int k = 0; k < NP; k++)
             for (int c = 0; c < 3; c++) va[3 * k + c] = vb[3 * at[k] + c];
-        history_push(&a, va, NP), history_push(&b, vb, NP);
-        history_derivative(&a, NP), history_derivative(&b, NP);
+        stf_history_push(&a, va, NP), stf_history_push(&b, vb, NP);
+        stf_history_derivative(&a, NP), stf_history_derivative(&b, NP);
         for (int k = 0; k < NP; k++)
             for (int c = 0; c < 3; c++, checked++)
                 differ += memcmp(&a.D[3 * k + c], &b.D[3 * at[k] + c], sizeof(double)) != 0;
@@ -422,7 +422,7 @@ static void test_window_resort(int D)
     printf("test_history: d = %d (%s), re-sorts at %d and %d, %d particles: %ld sums "
            "bit-identical to a twin never re-sorted\n", D, D < 256 ? "rows gathered" : "map",
            FAR, NEAR, NP, checked);
-    history_free(&a), history_free(&b);
+    stf_history_free(&a), stf_history_free(&b);
 }
 
 /* Particles added since the last push (no row yet), then some particles removed before the
@@ -441,7 +441,7 @@ static void test_window_add_then_remove(int D)
     for (int k = 0; k < nall; k++)
         if (k % 4 != 1) keep[nkeep++] = k; /* old indices kept, some added ones among them */
     stf_history a, b;
-    CHECK(history_init(&a, q, D, nall) == 0 && history_init(&b, q, D, nkeep) == 0, "init");
+    CHECK(stf_history_init(&a, q, D, nall) == 0 && stf_history_init(&b, q, D, nkeep) == 0, "init");
     int at[NP + ADD]; /* at[k]: the signal index of a's particle k */
     for (int k = 0; k < nall; k++) at[k] = k;
     int na = NP;
@@ -464,9 +464,9 @@ static void test_window_add_then_remove(int D)
                 vb[3 * k + c] = bsig[k] >= NP && t < T0
                                     ? 0.0
                                     : sin(0.05 * t + 0.9 * bsig[k] + c) + 0.1 * c;
-        CHECK(history_push(&a, va, na) == 0 && history_push(&b, vb, nkeep) == 0, "push");
-        history_derivative(&a, na);
-        history_derivative(&b, nkeep);
+        CHECK(stf_history_push(&a, va, na) == 0 && stf_history_push(&b, vb, nkeep) == 0, "push");
+        stf_history_derivative(&a, na);
+        stf_history_derivative(&b, nkeep);
         if (t < T0) continue;
         for (int e = 0; e < 3 * nkeep; e++, checked++)
             differ += memcmp(&a.D[e], &b.D[e], sizeof(double)) != 0;
@@ -475,7 +475,7 @@ static void test_window_add_then_remove(int D)
           "removed before a push", D, differ, checked);
     printf("test_history: d = %d, %d particles added and %d removed before one push: %ld sums "
            "bit-identical to the twin\n", D, ADD, nall - nkeep, checked);
-    history_free(&a), history_free(&b);
+    stf_history_free(&a), stf_history_free(&b);
 }
 
 /* Particles removed in the middle of a block while the scratch for reordering the block's
@@ -494,7 +494,7 @@ static void test_window_remove_out_of_memory(void)
     mallopt(M_MMAP_THRESHOLD, 64 * 1024);
 #endif
     stf_history a, b;
-    CHECK(history_init(&a, q, D, NP) == 0 && history_init(&b, q, D, ADD) == 0, "init");
+    CHECK(stf_history_init(&a, q, D, NP) == 0 && stf_history_init(&b, q, D, ADD) == 0, "init");
     double *va = malloc((size_t)NP * 3 * sizeof *va), vb[ADD * 3];
     int *keep = malloc((size_t)KEEP * sizeof *keep);
     for (int k = 0; k < KEEP; k++) keep[k] = k; /* the last 1000 removed */
@@ -512,13 +512,13 @@ static void test_window_remove_out_of_memory(void)
                 cap = old;
                 cap.rlim_cur = (rlim_t)pages * 4096 + (rlim_t)NP * 28;
                 if (cap.rlim_cur < old.rlim_cur && setrlimit(RLIMIT_AS, &cap) == 0) {
-                    CHECK(history_permute(&a, keep, KEEP) == 0, "remove under the cap");
+                    CHECK(stf_history_permute(&a, keep, KEEP) == 0, "remove under the cap");
                     setrlimit(RLIMIT_AS, &old);
                     capped = 1;
                 }
             }
             if (f) fclose(f);
-            if (!capped) CHECK(history_permute(&a, keep, KEEP) == 0, "remove");
+            if (!capped) CHECK(stf_history_permute(&a, keep, KEEP) == 0, "remove");
             na = KEEP;
         }
         if (t == T1) na = KEEP + ADD; /* ADD particles appended in the same block */
@@ -528,9 +528,9 @@ static void test_window_remove_out_of_memory(void)
                                           : sin(0.3 * t + 0.001 * k + c) + 2.0;
         for (int k = 0; k < ADD; k++)
             for (int c = 0; c < 3; c++) vb[3 * k + c] = t < T1 ? 0.0 : va[3 * (KEEP + k) + c];
-        CHECK(history_push(&a, va, na) == 0 && history_push(&b, vb, ADD) == 0, "push");
-        history_derivative(&a, na);
-        history_derivative(&b, ADD);
+        CHECK(stf_history_push(&a, va, na) == 0 && stf_history_push(&b, vb, ADD) == 0, "push");
+        stf_history_derivative(&a, na);
+        stf_history_derivative(&b, ADD);
         if (t < T1) continue;
         for (int e = 0; e < 3 * ADD; e++, checked++)
             differ += memcmp(&a.D[3 * KEEP + e], &b.D[e], sizeof(double)) != 0;
@@ -542,48 +542,48 @@ static void test_window_remove_out_of_memory(void)
            "mid-block: %ld sums bit-identical to the zero-past twin\n",
            capped ? "capped" : "(cap not set)", ADD, checked);
     free(va), free(keep);
-    history_free(&a), history_free(&b);
+    stf_history_free(&a), stf_history_free(&b);
 #endif
 }
 
-/* A checkpoint's copy of the ring (history_ring_get, by particle) loaded into a new history
- * (history_ring_set) after re-sorts: the sums that follow are bit for bit the same. */
+/* A checkpoint's copy of the ring (stf_history_ring_get, by particle) loaded into a new history
+ * (stf_history_ring_set) after re-sorts: the sums that follow are bit for bit the same. */
 static void test_window_ring_copy(void)
 {
     enum { NP = 30, D = 260, T = 400, SAVE = 310 };
     const double q = 0.3;
     stf_history a, b;
-    CHECK(history_init(&a, q, D, NP) == 0, "init");
+    CHECK(stf_history_init(&a, q, D, NP) == 0, "init");
     int perm[NP];
     for (int k = 0; k < NP; k++) perm[k] = (11 * k + 5) % NP;
     double v[NP * 3];
     long differ = 0, checked = 0;
     for (int t = 0; t < T; t++) {
         if (t % 37 == 0) /* both re-sorted alike once the copy exists */
-            CHECK(history_permute(&a, perm, NP) == 0 &&
-                      (t < SAVE || history_permute(&b, perm, NP) == 0),
+            CHECK(stf_history_permute(&a, perm, NP) == 0 &&
+                      (t < SAVE || stf_history_permute(&b, perm, NP) == 0),
                   "re-sort");
         if (t == SAVE) {
             float *ring = malloc((size_t)a.cap * NP * 3 * sizeof *ring);
-            CHECK(ring && history_init(&b, q, D, NP) == 0, "init the copy");
-            history_ring_get(&a, ring, NP);
-            CHECK(history_ring_set(&b, ring, NP) == 0, "ring_set");
+            CHECK(ring && stf_history_init(&b, q, D, NP) == 0, "init the copy");
+            stf_history_ring_get(&a, ring, NP);
+            CHECK(stf_history_ring_set(&b, ring, NP) == 0, "ring_set");
             b.pushed = a.pushed, b.head = a.head;
             free(ring);
         }
         for (int e = 0; e < 3 * NP; e++) v[e] = cos(0.07 * t + 0.3 * e);
-        history_push(&a, v, NP);
-        history_derivative(&a, NP);
+        stf_history_push(&a, v, NP);
+        stf_history_derivative(&a, NP);
         if (t < SAVE) continue;
-        history_push(&b, v, NP);
-        history_derivative(&b, NP);
+        stf_history_push(&b, v, NP);
+        stf_history_derivative(&b, NP);
         for (int e = 0; e < 3 * NP; e++, checked++)
             differ += memcmp(&a.D[e], &b.D[e], sizeof(double)) != 0;
     }
     CHECK(differ == 0, "%ld of %ld sums differ after the ring was copied", differ, checked);
     printf("test_history: ring copied out and in at sample %d after re-sorts: %ld sums "
            "bit-identical\n", SAVE, checked);
-    history_free(&a), history_free(&b);
+    stf_history_free(&a), stf_history_free(&b);
 }
 
 int main(void)

@@ -31,7 +31,7 @@ static void test_fit(void)
         for (int ik = 0; ik < 4; ik++) {
             int K = Ks[ik];
             double r[64], c[64], worst = 0;
-            CHECK(history_soe_fit(q, K, r, c) == 0, "fit q=%g K=%d", q, K);
+            CHECK(stf_history_soe_fit(q, K, r, c) == 0, "fit q=%g K=%d", q, K);
             for (double k = 1; k <= 1e5; k = k < 300 ? k + 1 : round(k * 1.05)) {
                 double s = 0;
                 for (int j = 0; j < K; j++) s += c[j] * pow(r[j], k - 1);
@@ -54,11 +54,11 @@ static void test_constant_velocity(void)
         static const int Ks[] = {8, 16};
         for (int ik = 0; ik < 2; ik++) {
             stf_history h;
-            CHECK(history_soe_init(&h, q, Ks[ik], 1) == 0, "init");
+            CHECK(stf_history_soe_init(&h, q, Ks[ik], 1) == 0, "init");
             double worst = 0;
             for (long n = 0; n <= 10000; n++) {
-                history_push(&h, v, 1);
-                history_derivative(&h, 1);
+                stf_history_push(&h, v, 1);
+                stf_history_derivative(&h, 1);
                 double want = n == 0 ? 1.0 : (2.0 - q) * pow((double)n, 1.0 - q);
                 for (int a = 0; a < 3; a++) {
                     double rel = fabs(h.D[a] / (v[a] * want) - 1);
@@ -70,7 +70,7 @@ static void test_constant_velocity(void)
             CHECK(worst < prev, "q=%g: error does not fall with K", q);
             if (Ks[ik] == 16) CHECK(worst < 1e-3, "q=%g K=16: error %.3g", q, worst);
             prev = worst;
-            history_free(&h);
+            stf_history_free(&h);
         }
     }
 }
@@ -82,17 +82,17 @@ static void test_irregular(void)
     for (int iq = 0; iq < 3; iq++) {
         double q = qs[iq];
         stf_history hs, hf;
-        CHECK(history_soe_init(&hs, q, 16, np) == 0, "init soe");
-        CHECK(history_init(&hf, q, 0, np) == 0, "init full");
+        CHECK(stf_history_soe_init(&hs, q, 16, np) == 0, "init soe");
+        CHECK(stf_history_init(&hf, q, 0, np) == 0, "init full");
         double worst = 0, wsum = 1; /* sum_k |w_k| up to the newest lag */
         for (int n = 0; n < steps; n++) {
             for (int i = 0; i < 3 * np; i++) /* impacts, oscillation and drift */
                 v[i] = sin(0.013 * n * (i + 1)) + (n % 997 < 50 ? 3.0 : 0.0) - 0.2 * (i % 3) +
                        1e-4 * n;
-            history_push(&hs, v, np);
-            history_push(&hf, v, np);
-            history_derivative(&hs, np);
-            history_derivative(&hf, np);
+            stf_history_push(&hs, v, np);
+            stf_history_push(&hf, v, np);
+            stf_history_derivative(&hs, np);
+            stf_history_derivative(&hf, np);
             if (n > 0) wsum += weight(q, n);
             double vmax = 3.0 + 1.0 + 0.4 + 1e-4 * n;
             for (int i = 0; i < 3 * np; i++) {
@@ -103,18 +103,18 @@ static void test_irregular(void)
         printf("irregular velocity q=%.1f K=16: worst error %.3g of the history scale\n", q, worst);
         CHECK(worst < 1e-3, "q=%g: soe vs exact full history %.3g", q, worst);
         /* O(1) memory: the soe store did not grow; the exact full history did */
-        size_t before = history_bytes(&hs), full_before = history_bytes(&hf);
+        size_t before = stf_history_bytes(&hs), full_before = stf_history_bytes(&hf);
         for (int n = 0; n < 200; n++) {
-            history_push(&hs, v, np);
-            history_push(&hf, v, np);
+            stf_history_push(&hs, v, np);
+            stf_history_push(&hf, v, np);
         }
-        CHECK(history_bytes(&hs) == before, "soe memory grew %zu -> %zu", before, history_bytes(&hs));
-        CHECK(history_bytes(&hf) >= full_before, "full history memory");
+        CHECK(stf_history_bytes(&hs) == before, "soe memory grew %zu -> %zu", before, stf_history_bytes(&hs));
+        CHECK(stf_history_bytes(&hf) >= full_before, "full history memory");
         /* K running sums, v0 and D per particle (doubles), and the fit's 2K numbers */
-        CHECK(history_bytes(&hs) == (size_t)hs.n_alloc * (3 * 16 + 6) * 8 + 2 * 16 * 8,
-              "soe bytes %zu for %d particle slots", history_bytes(&hs), hs.n_alloc);
-        history_free(&hs);
-        history_free(&hf);
+        CHECK(stf_history_bytes(&hs) == (size_t)hs.n_alloc * (3 * 16 + 6) * 8 + 2 * 16 * 8,
+              "soe bytes %zu for %d particle slots", stf_history_bytes(&hs), hs.n_alloc);
+        stf_history_free(&hs);
+        stf_history_free(&hf);
     }
     free(v);
 }
@@ -124,23 +124,23 @@ static void test_permute(void)
 {
     const int np = 3;
     stf_history a, b;
-    CHECK(history_soe_init(&a, 0.5, 12, np) == 0 && history_soe_init(&b, 0.5, 12, np) == 0, "init");
+    CHECK(stf_history_soe_init(&a, 0.5, 12, np) == 0 && stf_history_soe_init(&b, 0.5, 12, np) == 0, "init");
     double v[9], vp[9];
     int perm[3] = {2, 0, 1};
     for (int n = 0; n < 300; n++) {
         for (int i = 0; i < 9; i++) v[i] = cos(0.05 * n * (i + 1));
         for (int i = 0; i < np; i++)
             for (int c = 0; c < 3; c++) vp[3 * i + c] = v[3 * perm[i] + c];
-        history_push(&a, v, np);
-        if (n == 150) CHECK(history_permute(&b, perm, np) == 0, "permute");
-        history_push(&b, n >= 150 ? vp : v, np);
+        stf_history_push(&a, v, np);
+        if (n == 150) CHECK(stf_history_permute(&b, perm, np) == 0, "permute");
+        stf_history_push(&b, n >= 150 ? vp : v, np);
     }
     for (int i = 0; i < np; i++)
         for (int c = 0; c < 3; c++)
             CHECK(b.D[3 * i + c] == a.D[3 * perm[i] + c], "particle %d comp %d: %.17g vs %.17g", i,
                   c, b.D[3 * i + c], a.D[3 * perm[i] + c]);
-    history_free(&a);
-    history_free(&b);
+    stf_history_free(&a);
+    stf_history_free(&b);
 }
 
 static uint64_t drop_run(int threads, float *kmax)

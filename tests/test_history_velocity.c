@@ -1,4 +1,4 @@
-/* test_history_velocity.c - history.velocity: smoothed (src/fluid.c, fluid_smoothed_velocity),
+/* test_history_velocity.c - history.velocity: smoothed (src/fluid.c, stf_fluid_smoothed_velocity),
  * the velocity Eq. 3 remembers, on a simple cubic lattice whose answers are lattice sums:
  *
  *  linear field  v = (A z, B x, C y) + V0 in the bulk (a full neighbourhood) comes out
@@ -60,9 +60,9 @@ static void test_lattice(void)
         stf_fluid *f = lattice(s, e);
         if (!f) return;
         int n = stf_fluid_count(f);
-        CHECK(grid_build(&f->grid, f->x, n, f->h) == 0, "grid_build");
+        CHECK(stf_grid_build(&f->grid, f->x, n, f->h) == 0, "grid_build");
         double *out = malloc(3 * (size_t)n * sizeof *out);
-        fluid_smoothed_velocity(f, out);
+        stf_fluid_smoothed_velocity(f, out);
         /* the checkerboard factor from the lattice: the sites within h of a site */
         int m = (int)(f->h / s) + 1;
         double sw = 0, ssw = 0;

@@ -835,16 +835,16 @@ static int bench_grid(const bench_args *a)
         int n = f->n;
         stf_grid g = {0};
         double *x = malloc((size_t)n * 3 * sizeof *x);
-        int rc = x && grid_sort(&g, f->x, n, f->h) == 0 ? 0 : 3;
+        int rc = x && stf_grid_sort(&g, f->x, n, f->h) == 0 ? 0 : 3;
         for (int i = 0; i < n && rc == 0; i++) memcpy(x + 3 * i, f->x + 3 * g.order[i], 3 * sizeof *x);
         double c0 = cpu_seconds();
         for (int r = 0; r < a->steps && rc == 0; r++) {
             grid_invalidate(&g);
-            if (grid_build(&g, x, n, f->h) != 0) rc = 3;
+            if (stf_grid_build(&g, x, n, f->h) != 0) rc = 3;
         }
         double c1 = cpu_seconds();
         for (int r = 0; r < a->steps && rc == 0; r++)
-            if (grid_build(&g, x, n, f->h) != 0) rc = 3;
+            if (stf_grid_build(&g, x, n, f->h) != 0) rc = 3;
         double c2 = cpu_seconds();
         if (rc == 0) {
             long nc = 0, nn = 0;
@@ -857,7 +857,7 @@ static int bench_grid(const bench_args *a)
             fprintf(stderr, "stf bench grid: out of memory\n");
         }
         free(x);
-        grid_free(&g);
+        stf_grid_free(&g);
         stf_sim_destroy(sim);
         stf_scene_free(sc);
         if (rc) return rc;

@@ -3,8 +3,8 @@
  * Figure 2: the weights a_{p,n} of Eq. 3 (stf_history_weight) at a fixed n for several q.
  * Figures 3 and 4: one history spring between a particle i that follows a velocity profile
  * (along x) and a particle j at rest. Both are pushed into the simulation's own ring
- * (history_init / history_push / history_derivative of src/history.h) every step, and the
- * history stiffness of Eq. 5/6 is k_hist * history_scale(q, dt) * |D_i - D_j| for each q and
+ * (stf_history_init / stf_history_push / stf_history_derivative of src/history.h) every step, and the
+ * history stiffness of Eq. 5/6 is k_hist * stf_history_scale(q, dt) * |D_i - D_j| for each q and
  * each window d (plus the full history). Writes CSV + PNG per figure into one directory. */
 #define _POSIX_C_SOURCE 200809L
 #include "history_cli.h"
@@ -449,24 +449,24 @@ out:
 
 /* ---------------------------------------------------------------- computation */
 
-/* k[i] = k_hist * history_scale(q, dt) * |D_0 - D_1| after pushing sample i: particle 0 moves
+/* k[i] = k_hist * stf_history_scale(q, dt) * |D_0 - D_1| after pushing sample i: particle 0 moves
  * with v[i] along x, particle 1 is at rest. window 0: full history. */
 static int stiffness_series(double q, int window, const profile *p, double dt, double k_hist, double *k)
 {
     stf_history h;
-    if (history_init(&h, q, window, 2) != 0) return -1;
-    double scale = history_scale(q, dt);
+    if (stf_history_init(&h, q, window, 2) != 0) return -1;
+    double scale = stf_history_scale(q, dt);
     for (int i = 0; i < p->n; i++) {
         double v[6] = {p->v[i], 0, 0, 0, 0, 0};
-        if (history_push(&h, v, 2) != 0) {
-            history_free(&h);
+        if (stf_history_push(&h, v, 2) != 0) {
+            stf_history_free(&h);
             return -1;
         }
-        history_derivative(&h, 2);
+        stf_history_derivative(&h, 2);
         double dx = h.D[0] - h.D[3], dy = h.D[1] - h.D[4], dz = h.D[2] - h.D[5];
         k[i] = k_hist * scale * sqrt(dx * dx + dy * dy + dz * dz);
     }
-    history_free(&h);
+    stf_history_free(&h);
     return 0;
 }
 
