@@ -260,7 +260,17 @@ STF_API int stf_collider_extent(const stf_collider_def *def, double *inradius, d
 
 typedef struct stf_fluid stf_fluid;
 
-/* Creates a fluid from def; checks every field. Returns 0, or -1 with a message in err. */
+/* Checks every field of def (the one check of its ranges: stf_fluid_create calls it, and so
+ * does the scene loader, which reports a refused field at the scene key it came from).
+ * Returns 0 when def is valid (*field is then NULL); -1 when not, with "NAME: what is wrong"
+ * in err (NAME the field's scene key, e.g. "k_onset: must be >= 0 (got -1)", "damping: needs
+ * relaxation gauss_seidel") and in *field the member of stf_fluid_def that is wrong, spelt as
+ * in C: "spacing", "spring_damping", "material_spacing", "gravity", "cy.mu0" (a static
+ * string). Of two fields that contradict each other, *field is the one the message names.
+ * err may be NULL with errlen 0; field may be NULL. */
+STF_API int stf_fluid_check_def(const stf_fluid_def *def, char *err, size_t errlen, const char **field);
+/* Creates a fluid from def; checks every field (stf_fluid_check_def). Returns 0, or -1 with a
+ * message in err. */
 STF_API int stf_fluid_create(const stf_fluid_def *def, stf_fluid **out, char *err, size_t errlen);
 STF_API void stf_fluid_destroy(stf_fluid *f);
 
