@@ -104,14 +104,26 @@ int stf_fluid_check_def(const stf_fluid_def *d, char *err, size_t errlen, const 
     if (d->effects & ~all) BAD("effects", "effects: unknown effect bits 0x%x", d->effects & ~all);
     if (d->model != STF_MODEL_CLAVET_STF && d->model != STF_MODEL_CARREAU_YASUDA)
         BAD("model", "model: must be clavet_stf or carreau_yasuda (got %d)", d->model);
+    if (d->model == STF_MODEL_CARREAU_YASUDA) { /* caps on the counts (cy_check_def: floors) */
+        const stf_cy_def *c = &d->cy;
+        if (c->min_pressure_iterations > 10000)
+            BAD("cy.min_pressure_iterations",
+                "min_pressure_iterations: must be <= 10000 (got %d)", c->min_pressure_iterations);
+        if (c->max_pressure_iterations > 10000)
+            BAD("cy.max_pressure_iterations",
+                "max_pressure_iterations: must be <= 10000 (got %d)", c->max_pressure_iterations);
+        if (c->max_cg_iterations > 100000)
+            BAD("cy.max_cg_iterations", "max_cg_iterations: must be <= 100000 (got %d)",
+                c->max_cg_iterations);
+    }
     char cy_msg[256]; /* its own buffer: err may be short or NULL */
     if (d->model == STF_MODEL_CARREAU_YASUDA && cy_check_def(d, cy_msg, sizeof cy_msg) != 0)
         BAD(cy_field(cy_msg), "%s", cy_msg);
     for (int a = 0; a < 3; a++)
         if (d->model != STF_MODEL_CARREAU_YASUDA && d->periodic[a] != 0)
             BAD("periodic", "periodic: only the carreau_yasuda model has periodic axes");
-    if (!(d->spacing > 0 && isfinite(d->spacing)))
-        BAD("spacing", "spacing: must be > 0 (got %g)", d->spacing);
+    if (!(d->spacing > 0 && d->spacing <= 1))
+        BAD("spacing", "spacing: must be > 0 and <= 1 m (got %g)", d->spacing);
     if (!(d->density > 0 && isfinite(d->density)))
         BAD("density", "density: must be > 0 (got %g)", d->density);
     if (!(d->material_spacing >= 0 && isfinite(d->material_spacing) && d->material_spacing <= 1))
@@ -120,6 +132,9 @@ int stf_fluid_check_def(const stf_fluid_def *d, char *err, size_t errlen, const 
     if (d->material_spacing > 0 && d->reference_spacing > 0)
         BAD("reference_spacing",
             "reference_spacing: give the material's (fluid) or the history's, not both");
+    if (d->material_spacing > 0 && d->h != 0)
+        BAD("h", "h: must be 0 (2 spacings) with a reference_spacing: the material scales with "
+                 "h / spacing fixed (got %g)", d->h);
     if (!(d->h == 0 || (d->h >= d->spacing && d->h <= 5 * d->spacing)))
         BAD("h", "h: must be 0 or in [spacing, 5*spacing] (got %g)", d->h);
     for (int a = 0; a < 3; a++)
@@ -164,8 +179,8 @@ int stf_fluid_check_def(const stf_fluid_def *d, char *err, size_t errlen, const 
                 d->history_mode);
         if (d->history_mode == STF_HISTORY_SOE && !(d->terms >= 1 && d->terms <= 64))
             BAD("terms", "terms: must be in [1, 64] (got %d)", d->terms);
-        if (d->history_mode == STF_HISTORY_WINDOW && d->memory <= 0 && d->d < 1)
-            BAD("d", "d: must be >= 1 (got %d)", d->d);
+        if (d->memory <= 0 && !(d->d >= 1 && d->d <= 100000))
+            BAD("d", "d: must be >= 1 and <= 100000 (got %d)", d->d);
         if (!(d->memory >= 0 && isfinite(d->memory)))
             BAD("memory", "memory: must be >= 0 (got %g)", d->memory);
         if (!(d->k_hist >= 0 && isfinite(d->k_hist)))

@@ -563,7 +563,9 @@ static void test_check_def(void)
         expect_field(&d, field, message);                                                     \
     } while (0)
     BAD_FIELD(spacing, -1, "spacing", "spacing: must be > 0");
+    BAD_FIELD(spacing, 2, "spacing", "spacing: must be > 0 and <= 1 m");
     BAD_FIELD(h, 0.001, "h", "h: must be 0 or in [spacing, 5*spacing]");
+    BAD_FIELD(d, 100001, "d", "d: must be >= 1 and <= 100000");
     BAD_FIELD(material_spacing, 2, "material_spacing", "reference_spacing: ");
     BAD_FIELD(sigma, -1, "sigma", "sigma: must be >= 0");
     BAD_FIELD(k, 0, "k", "k: must be > 0");
@@ -571,6 +573,14 @@ static void test_check_def(void)
     BAD_FIELD(k_onset, -1, "k_onset", "k_onset: must be >= 0 (got -1)");
     BAD_FIELD(q, 1, "q", "q: must be in (0,1)");
     BAD_FIELD(stick, NAN, "stick", "stick: must be >= 0");
+    d = stf_default_fluid_def();
+    d.history_mode = STF_HISTORY_FULL, d.d = 0; /* d is the window unless memory > 0 */
+    expect_field(&d, "d", "d: must be >= 1");
+    d.memory = 1;
+    CHECK(stf_fluid_check_def(&d, err, sizeof err, NULL) == 0, "d with memory: %s", err);
+    d = stf_default_fluid_def();
+    d.material_spacing = 0.02, d.h = 0.02; /* the material scales with h / spacing fixed */
+    expect_field(&d, "h", "h: must be 0 (2 spacings) with a reference_spacing");
     d = stf_default_fluid_def();
     d.material_spacing = 0.02, d.reference_spacing = 0.02; /* the newer key is the one kept */
     expect_field(&d, "reference_spacing", "reference_spacing: give the material's");
@@ -583,7 +593,11 @@ static void test_check_def(void)
     expect_field(&d, "cy.relaxation", "relaxation: ");
     d.cy.relaxation = 0, d.cy.max_pressure_iterations = 1;
     expect_field(&d, "cy.max_pressure_iterations", "max_pressure_iterations: must be >= min");
-    d.cy.max_pressure_iterations = 100, d.cy.dt_max = 0.01;
+    d.cy.max_pressure_iterations = 10001;
+    expect_field(&d, "cy.max_pressure_iterations", "max_pressure_iterations: must be <= 10000");
+    d.cy.max_pressure_iterations = 100, d.cy.max_cg_iterations = 100001;
+    expect_field(&d, "cy.max_cg_iterations", "max_cg_iterations: must be <= 100000");
+    d.cy.max_cg_iterations = 200, d.cy.dt_max = 0.01;
     expect_field(&d, "cy.dt_max", "dt_max: only with cfl");
     d.cy.dt_max = 0, d.periodic[1] = 0.01;
     expect_field(&d, "periodic", "periodic: a period must be >= 3 h");
