@@ -554,7 +554,7 @@ static void test_periodic(void)
 }
 
 /* effects.carreau_yasuda: cfl is 0 (off) or in (0,1) as documented; dt_max only with cfl,
- * refused at its place in the file (the fluid's own check names no place). */
+ * refused at its value in the file (the fluid's check refuses it; the loader names the place). */
 static void test_cy_ranges(void)
 {
 #define CY_HEAD "duration: 1\nfluid:\n  model: carreau_yasuda\n  spacing: 0.01\n  blocks:\n" \
@@ -565,7 +565,7 @@ static void test_cy_ranges(void)
     CHECK(rc == 0 && s && s->fluid.cy.cfl == 0, "cfl: 0 (off): %s", err);
     stf_scene_free(s);
     EXPECT_ERROR(CY_HEAD "    dt_max: 0.001\n",
-                 "t.yaml:9:5: effects.carreau_yasuda.dt_max: only with cfl", NULL);
+                 "t.yaml:9:13: effects.carreau_yasuda.dt_max: only with cfl", NULL);
 #undef CY_HEAD
 }
 
