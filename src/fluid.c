@@ -70,71 +70,134 @@ void stf_set_threads(int n)
         return -1;                                                                            \
     } while (0)
 
-static int check_def(const stf_fluid_def *d, char *err, size_t errlen)
+/* stf_cy_check_def starts its message with the name of the field it refuses ("mu0: ..."): a
+ * member of def->cy, or of def itself (effects, periodic, periodic_origin). */
+static const char *cy_field(const char *msg)
 {
+    static const char *const fields[] = {
+        "cy.mu0", "cy.mu_inf", "cy.K", "cy.alpha", "cy.n", "cy.eta",
+        "cy.min_pressure_iterations", "cy.max_pressure_iterations", "cy.viscosity_solver",
+        "cy.viscosity_form", "cy.cg_tolerance", "cy.max_cg_iterations", "cy.warm_start",
+        "cy.relaxation", "cy.dt_max", "cy.cfl", "effects", "periodic", "periodic_origin", NULL};
+    size_t n = strcspn(msg, ":");
+    for (int i = 0; fields[i]; i++) {
+        const char *name = strncmp(fields[i], "cy.", 3) ? fields[i] : fields[i] + 3;
+        if (strlen(name) == n && !strncmp(name, msg, n)) return fields[i];
+    }
+    return "cy";
+}
+
+#define BAD(F, ...)                                                                                \
+    do {                                                                                           \
+        *field = (F);                                                                              \
+        snprintf(err, errlen, __VA_ARGS__);                                                        \
+        return -1;                                                                                 \
+    } while (0)
+
+int stf_fluid_check_def(const stf_fluid_def *d, char *err, size_t errlen, const char **field)
+{
+    const char *unused;
+    if (!field) field = &unused;
+    *field = NULL;
     const unsigned all = STF_EFFECT_GRAVITY | STF_EFFECT_VISCOSITY | STF_EFFECT_PRESSURE |
                          STF_EFFECT_SPRINGS | STF_EFFECT_HISTORY | STF_EFFECT_BOUNDARY_STICK;
-    if (d->effects & ~all) FAIL("effects: unknown effect bits 0x%x", d->effects & ~all);
+    if (d->effects & ~all) BAD("effects", "effects: unknown effect bits 0x%x", d->effects & ~all);
     if (d->model != STF_MODEL_CLAVET_STF && d->model != STF_MODEL_CARREAU_YASUDA)
-        FAIL("model: must be clavet_stf or carreau_yasuda (got %d)", d->model);
-    if (d->model == STF_MODEL_CARREAU_YASUDA && stf_cy_check_def(d, err, errlen) != 0) return -1;
+        BAD("model", "model: must be clavet_stf or carreau_yasuda (got %d)", d->model);
+    if (d->model == STF_MODEL_CARREAU_YASUDA) { /* caps on the counts (stf_cy_check_def: floors) */
+        const stf_cy_def *c = &d->cy;
+        if (c->min_pressure_iterations > 10000)
+            BAD("cy.min_pressure_iterations",
+                "min_pressure_iterations: must be <= 10000 (got %d)", c->min_pressure_iterations);
+        if (c->max_pressure_iterations > 10000)
+            BAD("cy.max_pressure_iterations",
+                "max_pressure_iterations: must be <= 10000 (got %d)", c->max_pressure_iterations);
+        if (c->max_cg_iterations > 100000)
+            BAD("cy.max_cg_iterations", "max_cg_iterations: must be <= 100000 (got %d)",
+                c->max_cg_iterations);
+    }
+    char cy_msg[256]; /* its own buffer: err may be short or NULL */
+    if (d->model == STF_MODEL_CARREAU_YASUDA && stf_cy_check_def(d, cy_msg, sizeof cy_msg) != 0)
+        BAD(cy_field(cy_msg), "%s", cy_msg);
     for (int a = 0; a < 3; a++)
         if (d->model != STF_MODEL_CARREAU_YASUDA && d->periodic[a] != 0)
-            FAIL("periodic: only the carreau_yasuda model has periodic axes");
-    if (!(d->spacing > 0 && isfinite(d->spacing))) FAIL("spacing: must be > 0 (got %g)", d->spacing);
-    if (!(d->density > 0 && isfinite(d->density))) FAIL("density: must be > 0 (got %g)", d->density);
+            BAD("periodic", "periodic: only the carreau_yasuda model has periodic axes");
+    if (!(d->spacing > 0 && d->spacing <= 1))
+        BAD("spacing", "spacing: must be > 0 and <= 1 m (got %g)", d->spacing);
+    if (!(d->density > 0 && isfinite(d->density)))
+        BAD("density", "density: must be > 0 (got %g)", d->density);
     if (!(d->material_spacing >= 0 && isfinite(d->material_spacing) && d->material_spacing <= 1))
-        FAIL("reference_spacing: must be in [0, 1] m (got %g)", d->material_spacing);
+        BAD("material_spacing", "reference_spacing: must be in [0, 1] m (got %g)",
+            d->material_spacing);
     if (d->material_spacing > 0 && d->reference_spacing > 0)
-        FAIL("reference_spacing: give the material's (fluid) or the history's, not both");
+        BAD("reference_spacing",
+            "reference_spacing: give the material's (fluid) or the history's, not both");
+    if (d->material_spacing > 0 && d->h != 0)
+        BAD("h", "h: must be 0 (2 spacings) with a reference_spacing: the material scales with "
+                 "h / spacing fixed (got %g)", d->h);
     if (!(d->h == 0 || (d->h >= d->spacing && d->h <= 5 * d->spacing)))
-        FAIL("h: must be 0 or in [spacing, 5*spacing] (got %g)", d->h);
+        BAD("h", "h: must be 0 or in [spacing, 5*spacing] (got %g)", d->h);
     for (int a = 0; a < 3; a++)
-        if (!isfinite(d->gravity[a])) FAIL("gravity: must be finite");
-    if (!(d->sigma >= 0 && isfinite(d->sigma))) FAIL("sigma: must be >= 0 (got %g)", d->sigma);
-    if (!(d->beta >= 0 && isfinite(d->beta))) FAIL("beta: must be >= 0 (got %g)", d->beta);
+        if (!isfinite(d->gravity[a])) BAD("gravity", "gravity: must be finite");
+    if (!(d->sigma >= 0 && isfinite(d->sigma)))
+        BAD("sigma", "sigma: must be >= 0 (got %g)", d->sigma);
+    if (!(d->beta >= 0 && isfinite(d->beta))) BAD("beta", "beta: must be >= 0 (got %g)", d->beta);
     if ((d->effects & STF_EFFECT_PRESSURE) && !(d->k > 0 && isfinite(d->k)))
-        FAIL("k: must be > 0 (got %g)", d->k);
-    if (!(d->k_near >= 0 && isfinite(d->k_near))) FAIL("k_near: must be >= 0 (got %g)", d->k_near);
+        BAD("k", "k: must be > 0 (got %g)", d->k);
+    if (!(d->k_near >= 0 && isfinite(d->k_near)))
+        BAD("k_near", "k_near: must be >= 0 (got %g)", d->k_near);
     if (!(d->rest_density >= 0 && isfinite(d->rest_density)))
-        FAIL("rest_density: must be >= 0 (got %g)", d->rest_density);
-    if (!(d->k_min >= 0 && isfinite(d->k_min))) FAIL("k_min: must be >= 0 (got %g)", d->k_min);
+        BAD("rest_density", "rest_density: must be >= 0 (got %g)", d->rest_density);
+    if (!(d->k_min >= 0 && isfinite(d->k_min)))
+        BAD("k_min", "k_min: must be >= 0 (got %g)", d->k_min);
     if (!(d->yield_ratio >= 0 && d->yield_ratio <= 1))
-        FAIL("yield_ratio: must be in [0,1] (got %g)", d->yield_ratio);
+        BAD("yield_ratio", "yield_ratio: must be in [0,1] (got %g)", d->yield_ratio);
     if (!(d->plasticity >= 0 && isfinite(d->plasticity)))
-        FAIL("plasticity: must be >= 0 (got %g)", d->plasticity);
+        BAD("plasticity", "plasticity: must be >= 0 (got %g)", d->plasticity);
     if (!isfinite(d->liquid_plasticity))
-        FAIL("liquid_plasticity: must be finite, >= 0 (< 0: plasticity) (got %g)", d->liquid_plasticity);
+        BAD("liquid_plasticity",
+            "liquid_plasticity: must be finite, >= 0 (< 0: plasticity) (got %g)",
+            d->liquid_plasticity);
     if (d->relaxation != STF_RELAX_JACOBI && d->relaxation != STF_RELAX_GAUSS_SEIDEL)
-        FAIL("relaxation: must be jacobi or gauss_seidel (got %d)", d->relaxation);
+        BAD("relaxation", "relaxation: must be jacobi or gauss_seidel (got %d)", d->relaxation);
     if (!(d->spring_damping >= 0 && d->spring_damping <= 1))
-        FAIL("damping: must be in [0, 1] s (got %g)", d->spring_damping);
+        BAD("spring_damping", "damping: must be in [0, 1] s (got %g)", d->spring_damping);
     if (d->spring_damping > 0 && d->relaxation != STF_RELAX_GAUSS_SEIDEL)
-        FAIL("damping: needs relaxation gauss_seidel");
+        BAD("spring_damping", "damping: needs relaxation gauss_seidel");
     if (!(d->iterations >= 1 && d->iterations <= 64))
-        FAIL("iterations: must be in [1, 64] (got %d)", d->iterations);
+        BAD("iterations", "iterations: must be in [1, 64] (got %d)", d->iterations);
     if (d->effects & STF_EFFECT_HISTORY) {
-        if (!(d->effects & STF_EFFECT_SPRINGS)) FAIL("history: needs the springs effect");
-        if (!(d->q > 0 && d->q < 1)) FAIL("q: must be in (0,1) (got %g)", d->q);
-        if (d->history_velocity != STF_HISTORY_PARTICLE && d->history_velocity != STF_HISTORY_SMOOTHED)
-            FAIL("history_velocity: must be particle or smoothed (got %d)", d->history_velocity);
+        if (!(d->effects & STF_EFFECT_SPRINGS)) BAD("effects", "history: needs the springs effect");
+        if (!(d->q > 0 && d->q < 1)) BAD("q", "q: must be in (0,1) (got %g)", d->q);
+        if (d->history_velocity != STF_HISTORY_PARTICLE &&
+            d->history_velocity != STF_HISTORY_SMOOTHED)
+            BAD("history_velocity", "history_velocity: must be particle or smoothed (got %d)",
+                d->history_velocity);
         if (d->history_mode != STF_HISTORY_WINDOW && d->history_mode != STF_HISTORY_FULL &&
             d->history_mode != STF_HISTORY_SOE)
-            FAIL("history_mode: must be window, full or soe (got %d)", d->history_mode);
+            BAD("history_mode", "history_mode: must be window, full or soe (got %d)",
+                d->history_mode);
         if (d->history_mode == STF_HISTORY_SOE && !(d->terms >= 1 && d->terms <= 64))
-            FAIL("terms: must be in [1, 64] (got %d)", d->terms);
-        if (d->history_mode == STF_HISTORY_WINDOW && d->memory <= 0 && d->d < 1)
-            FAIL("d: must be >= 1 (got %d)", d->d);
-        if (!(d->memory >= 0 && isfinite(d->memory))) FAIL("memory: must be >= 0 (got %g)", d->memory);
-        if (!(d->k_hist >= 0 && isfinite(d->k_hist))) FAIL("k_hist: must be >= 0 (got %g)", d->k_hist);
+            BAD("terms", "terms: must be in [1, 64] (got %d)", d->terms);
+        if (d->memory <= 0 && !(d->d >= 1 && d->d <= 100000))
+            BAD("d", "d: must be >= 1 and <= 100000 (got %d)", d->d);
+        if (!(d->memory >= 0 && isfinite(d->memory)))
+            BAD("memory", "memory: must be >= 0 (got %g)", d->memory);
+        if (!(d->k_hist >= 0 && isfinite(d->k_hist)))
+            BAD("k_hist", "k_hist: must be >= 0 (got %g)", d->k_hist);
         if (!(d->reference_spacing >= 0 && isfinite(d->reference_spacing)))
-            FAIL("reference_spacing: must be >= 0 (got %g)", d->reference_spacing);
-        if (!(d->k_onset >= 0 && isfinite(d->k_onset))) FAIL("k_onset: must be >= 0 (got %g)", d->k_onset);
+            BAD("reference_spacing", "reference_spacing: must be >= 0 (got %g)",
+                d->reference_spacing);
+        if (!(d->k_onset >= 0 && isfinite(d->k_onset)))
+            BAD("k_onset", "k_onset: must be >= 0 (got %g)", d->k_onset);
     }
-    if (!(d->jitter >= 0 && d->jitter <= 0.45)) FAIL("jitter: must be in [0, 0.45] (got %g)", d->jitter);
-    if (!(d->stick >= 0 && isfinite(d->stick))) FAIL("stick: must be >= 0 (got %g)", d->stick);
+    if (!(d->jitter >= 0 && d->jitter <= 0.45))
+        BAD("jitter", "jitter: must be in [0, 0.45] (got %g)", d->jitter);
+    if (!(d->stick >= 0 && isfinite(d->stick)))
+        BAD("stick", "stick: must be >= 0 (got %g)", d->stick);
     return 0;
 }
+#undef BAD
 
 /* The rest density that makes the initial cubic lattice an equilibrium.
  *
@@ -166,7 +229,7 @@ static double lattice_rest_density(double spacing, double h, double k, double k_
 int stf_fluid_create(const stf_fluid_def *def, stf_fluid **out, char *err, size_t errlen)
 {
     *out = NULL;
-    if (check_def(def, err, errlen) != 0) return -1;
+    if (stf_fluid_check_def(def, err, errlen, NULL) != 0) return -1;
     stf_fluid *f = calloc(1, sizeof *f);
     if (!f) FAIL("out of memory");
     f->def = *def;

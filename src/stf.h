@@ -95,11 +95,11 @@ typedef struct stf_cy_def {
     double alpha;          /* transition smoothness a, dimensionless (> 0) */
     double n;              /* power index: 1 Newtonian, < 1 shear thinning, > 1 thickening (> 0) */
     double eta;            /* pressure projection: mean density error tolerance, fraction (> 0) */
-    int min_pressure_iterations; /* >= 1; the paper uses 2 */
-    int max_pressure_iterations; /* >= min; reached means "not converged" in the stats */
+    int min_pressure_iterations; /* 1 .. 10000; the paper uses 2 */
+    int max_pressure_iterations; /* min .. 10000; reached means "not converged" in the stats */
     int viscosity_solver;  /* enum stf_viscosity_solver */
     double cg_tolerance;   /* implicit viscosity: stop at |residual| <= tol |rhs| (> 0) */
-    int max_cg_iterations; /* >= 1 */
+    int max_cg_iterations; /* 1 .. 100000 */
     double cfl;            /* 0: one step of the given dt; in (0,1): CFL-adaptive substeps of
                               length dt_sub = min(dt, cfl h / v_max), v_max the largest particle
                               speed at the substep's start, dimensionless (Courant number) */
@@ -143,12 +143,13 @@ enum stf_relaxation { STF_RELAX_JACOBI = 0, STF_RELAX_GAUSS_SEIDEL = 1 };
 
 typedef struct stf_fluid_def {
     unsigned effects;      /* bit set of enum stf_effect */
-    double spacing;        /* initial particle spacing, m (> 0) */
+    double spacing;        /* initial particle spacing, m (> 0, <= 1) */
     double density;        /* physical density, kg/m^3; particle mass = density*spacing^3 */
     double jitter;         /* random offset of block particles from the lattice, in spacings,
                               [0, 0.45]: breaks the crystal a cubic lattice would be */
-    double h;              /* interaction radius, m; 0 means 2*spacing */
-    double material_spacing; /* m (>= 0; scene key fluid.reference_spacing): if > 0, the
+    double h;              /* interaction radius, m: 0 (2*spacing), or in [spacing, 5*spacing]
+                              (0 with material_spacing) */
+    double material_spacing; /* m (0 .. 1; scene key fluid.reference_spacing): if > 0, the
                               parameters below describe the material at this spacing, and a
                               fluid at another spacing s takes the same continuum material
                               (h/s fixed): with r = material_spacing / s, the spring stiffnesses
@@ -188,7 +189,7 @@ typedef struct stf_fluid_def {
     int iterations;        /* gauss_seidel: sweeps over the spring constraints per step, 1..64 */
     /* history (Eq. 3-6): k = k_min + k_hist * dt^(1-q)/Gamma(3-q) * |sum a (v_i - v_j)| */
     double q;              /* fractional order, in (0,1) */
-    int d;                 /* history window, steps (>= 1); ignored if memory > 0 */
+    int d;                 /* history window, steps (1 .. 100000); ignored if memory > 0 */
     double memory;         /* history window, s (> 0 overrides d: d = round(memory/dt)) */
     double k_hist;         /* history stiffness gain, 1/s^2 per m/s^q (>= 0) */
     double reference_spacing; /* m (>= 0): if > 0, k_hist is the gain at this spacing and is
@@ -260,7 +261,17 @@ STF_API int stf_collider_extent(const stf_collider_def *def, double *inradius, d
 
 typedef struct stf_fluid stf_fluid;
 
-/* Creates a fluid from def; checks every field. Returns 0, or -1 with a message in err. */
+/* Checks every field of def (the one check of its ranges: stf_fluid_create calls it, and so
+ * does the scene loader, which reports a refused field at the scene key it came from).
+ * Returns 0 when def is valid (*field is then NULL); -1 when not, with "NAME: what is wrong"
+ * in err (NAME the field's scene key, e.g. "k_onset: must be >= 0 (got -1)", "damping: needs
+ * relaxation gauss_seidel") and in *field the member of stf_fluid_def that is wrong, spelt as
+ * in C: "spacing", "spring_damping", "material_spacing", "gravity", "cy.mu0" (a static
+ * string). Of two fields that contradict each other, *field is the one the message names.
+ * err may be NULL with errlen 0; field may be NULL. */
+STF_API int stf_fluid_check_def(const stf_fluid_def *def, char *err, size_t errlen, const char **field);
+/* Creates a fluid from def; checks every field (stf_fluid_check_def). Returns 0, or -1 with a
+ * message in err. */
 STF_API int stf_fluid_create(const stf_fluid_def *def, stf_fluid **out, char *err, size_t errlen);
 STF_API void stf_fluid_destroy(stf_fluid *f);
 

@@ -85,6 +85,19 @@ C=$(($(sed -n "${L}p" d0.yaml | awk '{print index($0, "d: 0") + 3}')))
 expect_bad d0 "d0\\.yaml:$L:$C: effects\\.history\\.d: " -- \
     "$STF" run d0.yaml -o out.h5 --quiet
 
+# ranges of the fluid's def are the fluid's own check (stf_fluid_check_def), reported at
+# the key: one the fluid alone refused before (no gauss_seidel), one of a material file
+mk damping.yaml 's/plasticity: 2.0}/plasticity: 2.0, damping: 0.1}/'
+L=$(line_of damping.yaml '^  springs:')
+C=$(($(sed -n "${L}p" damping.yaml | awk '{print index($0, "0.1}")}')))
+expect_bad damping "damping\\.yaml:$L:$C: effects\\.springs\\.damping: needs relaxation gauss_seidel" -- \
+    "$STF" run damping.yaml -o out.h5 --quiet
+mkdir -p materials
+printf 'fluid:\n  density: 1300\neffects:\n  viscosity: {sigma: 3, beta: -1}\n' >materials/sticky.yaml
+mk material.yaml 's/^frame_rate: 50/frame_rate: 50\nmaterial: sticky/; s/viscosity: {sigma: 2.0, beta: 0.0}/viscosity: {}/'
+expect_bad material "materials/sticky\\.yaml:4:31: effects\\.viscosity\\.beta: must be >= 0" -- \
+    "$STF" run material.yaml -o out.h5 --quiet
+
 mk nan.yaml 's/^  density: 1270/  density: .nan/'
 L=$(line_of nan.yaml '^  density:')
 expect_bad nan "nan\\.yaml:$L:12: fluid\\.density: " -- \
@@ -160,6 +173,8 @@ expect_bad set_dneg '--set effects\.history\.d=-5' 'effects\.history\.d: ' '>= 1
     "$STF" run "$BASE" -o out.h5 --quiet --set effects.history.d=-5
 expect_bad set_nan '--set effects\.pressure\.k=\.nan' 'effects\.pressure\.k: ' 'finite' -- \
     "$STF" run "$BASE" -o out.h5 --quiet --set effects.pressure.k=.nan
+expect_bad set_onset '^--set effects\.history\.k_onset=-1: effects\.history\.k_onset: must be >= 0' -- \
+    "$STF" run "$BASE" -o out.h5 --quiet --set effects.history.k_onset=-1
 expect_bad set_mass0 '--set bodies\.0\.mass=0' 'bodies\.0\.mass: ' '> 0' -- \
     "$STF" run "$BASE" -o out.h5 --quiet --set bodies.0.mass=0
 expect_bad set_outside '--set fluid\.blocks\.0\.max=' 'fluid\.blocks\.0: ' 'outside the container' -- \

@@ -414,7 +414,8 @@ static void test_scene_keys(void)
           "viscosity_form monaghan: %s", err);
     stf_override ov2 = {"effects.carreau_yasuda.min_pressure_iterations", "60"};
     CHECK(stf_scene_load_string("ok.yaml", ok, &ov2, 1, &s, err, sizeof err) == 2 &&
-              strstr(err, "max_pressure_iterations must be >= min_pressure_iterations"),
+              strstr(err, "effects.carreau_yasuda.max_pressure_iterations: must be >= "
+                          "min_pressure_iterations"),
           "min > max: %s", err);
 }
 

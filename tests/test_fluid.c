@@ -14,6 +14,8 @@
  *  dt           a blob dropped on a floor (history memory given in seconds) converges as dt
  *               shrinks: the centre-of-mass trajectory changes less from dt/2 to dt/4 than
  *               from dt to dt/2.
+ *  check_def    stf_fluid_check_def names the member of the def it refuses (what the scene
+ *               loader maps back to a scene key), for the Clavet and the Carreau-Yasuda fields.
  */
 #define _POSIX_C_SOURCE 200809L
 #include "stf.h"
@@ -537,6 +539,80 @@ static void test_dt_convergence(void)
           "spacing)", e12);
 }
 
+/* One refused def: rc -1, *field the member, the message "NAME: ..." (NAME the scene key's). */
+static void expect_field(const stf_fluid_def *d, const char *field, const char *message)
+{
+    char msg[256] = "";
+    const char *got = "unset";
+    int rc = stf_fluid_check_def(d, msg, sizeof msg, &got);
+    CHECK(rc == -1 && got && !strcmp(got, field) && strstr(msg, message) == msg,
+          "want field %s and '%s...': rc %d, field %s, message '%s'", field, message, rc,
+          got ? got : "NULL", msg);
+}
+
+static void test_check_def(void)
+{
+    stf_fluid_def d = stf_default_fluid_def();
+    const char *field = "unset";
+    CHECK(stf_fluid_check_def(&d, err, sizeof err, &field) == 0 && field == NULL,
+          "the default def: %s", err);
+#define BAD_FIELD(member, value, field, message)                                              \
+    do {                                                                                      \
+        d = stf_default_fluid_def();                                                          \
+        d.member = value;                                                                     \
+        expect_field(&d, field, message);                                                     \
+    } while (0)
+    BAD_FIELD(spacing, -1, "spacing", "spacing: must be > 0");
+    BAD_FIELD(spacing, 2, "spacing", "spacing: must be > 0 and <= 1 m");
+    BAD_FIELD(h, 0.001, "h", "h: must be 0 or in [spacing, 5*spacing]");
+    BAD_FIELD(d, 100001, "d", "d: must be >= 1 and <= 100000");
+    BAD_FIELD(material_spacing, 2, "material_spacing", "reference_spacing: ");
+    BAD_FIELD(sigma, -1, "sigma", "sigma: must be >= 0");
+    BAD_FIELD(k, 0, "k", "k: must be > 0");
+    BAD_FIELD(spring_damping, 0.1, "spring_damping", "damping: needs relaxation gauss_seidel");
+    BAD_FIELD(k_onset, -1, "k_onset", "k_onset: must be >= 0 (got -1)");
+    BAD_FIELD(q, 1, "q", "q: must be in (0,1)");
+    BAD_FIELD(stick, NAN, "stick", "stick: must be >= 0");
+    d = stf_default_fluid_def();
+    d.history_mode = STF_HISTORY_FULL, d.d = 0; /* d is the window unless memory > 0 */
+    expect_field(&d, "d", "d: must be >= 1");
+    d.memory = 1;
+    CHECK(stf_fluid_check_def(&d, err, sizeof err, NULL) == 0, "d with memory: %s", err);
+    d = stf_default_fluid_def();
+    d.material_spacing = 0.02, d.h = 0.02; /* the material scales with h / spacing fixed */
+    expect_field(&d, "h", "h: must be 0 (2 spacings) with a reference_spacing");
+    d = stf_default_fluid_def();
+    d.material_spacing = 0.02, d.reference_spacing = 0.02; /* the newer key is the one kept */
+    expect_field(&d, "reference_spacing", "reference_spacing: give the material's");
+    /* the Carreau-Yasuda fields (cy_check_def) */
+    d = stf_default_fluid_def();
+    d.model = STF_MODEL_CARREAU_YASUDA;
+    expect_field(&d, "effects", "effects: the carreau_yasuda model");
+    d.effects = STF_EFFECT_GRAVITY;
+    d.cy.relaxation = 2;
+    expect_field(&d, "cy.relaxation", "relaxation: ");
+    d.cy.relaxation = 0, d.cy.max_pressure_iterations = 1;
+    expect_field(&d, "cy.max_pressure_iterations", "max_pressure_iterations: must be >= min");
+    d.cy.max_pressure_iterations = 10001;
+    expect_field(&d, "cy.max_pressure_iterations", "max_pressure_iterations: must be <= 10000");
+    d.cy.max_pressure_iterations = 100, d.cy.max_cg_iterations = 100001;
+    expect_field(&d, "cy.max_cg_iterations", "max_cg_iterations: must be <= 100000");
+    d.cy.max_cg_iterations = 200, d.cy.dt_max = 0.01;
+    expect_field(&d, "cy.dt_max", "dt_max: only with cfl");
+    d.cy.dt_max = 0, d.periodic[1] = 0.01;
+    expect_field(&d, "periodic", "periodic: a period must be >= 3 h");
+    /* err may be NULL, field too */
+    d = stf_default_fluid_def();
+    d.jitter = 1;
+    CHECK(stf_fluid_check_def(&d, NULL, 0, NULL) == -1, "no buffers");
+    d.model = STF_MODEL_CARREAU_YASUDA, d.effects = 0, d.cy.n = 0;
+    char tiny[4];
+    CHECK(stf_fluid_check_def(&d, tiny, sizeof tiny, &field) == -1 && !strcmp(field, "cy.n") &&
+              !strcmp(tiny, "n: "),
+          "a short buffer still names the field: %s, '%s'", field, tiny);
+#undef BAD_FIELD
+}
+
 int main(int argc, char **argv)
 {
     /* Threads that sleep rather than spin at barriers: on a machine busy with other tests the
@@ -552,6 +628,7 @@ int main(int argc, char **argv)
        spinning threads are slow on a machine busy with other tests, and results do not
        depend on the count (which test_determinism checks). */
     stf_set_threads(1);
+    test_check_def();
     double t0 = omp_get_wtime();
     test_momentum();
     test_spring_search();

@@ -3,7 +3,8 @@
  *  - the material's fluid keys and the parameters of the effects the scene names fill the
  *    scene; the scene's own keys win; an effect the scene does not name stays off;
  *  - d and memory are one key: a scene's d wins over the material's memory;
- *  - a bad key or value in the material is reported at the material file's line;
+ *  - a bad key or value in the material is reported at the material file's line (also a
+ *    value the fluid's def check refuses, of the fluid section or of an effect);
  *  - a missing material file is reported at the scene's `material` key;
  *  - the stored scene text holds the merged scene without the `material` key and loads (with
  *    no material file around) to the same fluid.
@@ -127,6 +128,37 @@ static void test_errors(void)
     snprintf(want, sizeof want, "%s/missing.yaml:2:11: material: cannot read %s/materials/nothere.yaml",
              dir, dir);
     expect_error("missing.yaml", want);
+    /* the def check's refusals of the material's values name the material file, of the
+       fluid section and of an effect; one against the scene's own key names the scene */
+    put("materials/thin.yaml", "fluid:\n  density: 0\n");
+    snprintf(text, sizeof text,
+             "duration: 0.1\nmaterial: thin\nfluid:\n  spacing: 0.02\n"
+             "  blocks: [{min: [0, 0, 0], max: [0.1, 0.1, 0.1]}]\neffects: {}\n");
+    put("bad_density.yaml", text);
+    snprintf(want, sizeof want, "%s/materials/thin.yaml:2:12: fluid.density: must be > 0 (got 0)",
+             dir);
+    expect_error("bad_density.yaml", want);
+    put("materials/onset.yaml", "fluid:\n  reference_spacing: 0.02\neffects:\n"
+                                "  history: {q: 0.5, k_onset: -2}\n");
+    snprintf(text, sizeof text,
+             "duration: 0.1\nmaterial: onset\nfluid:\n  spacing: 0.02\n"
+             "  blocks: [{min: [0, 0, 0], max: [0.1, 0.1, 0.1]}]\n"
+             "effects:\n  springs: {}\n  history: {d: 10}\n");
+    put("bad_onset.yaml", text);
+    snprintf(want, sizeof want,
+             "%s/materials/onset.yaml:4:30: effects.history.k_onset: must be >= 0 (got -2)", dir);
+    expect_error("bad_onset.yaml", want);
+    snprintf(text, sizeof text,
+             "duration: 0.1\nmaterial: onset\nfluid:\n  spacing: 0.02\n"
+             "  blocks: [{min: [0, 0, 0], max: [0.1, 0.1, 0.1]}]\n"
+             "effects:\n  springs: {}\n"
+             "  history: {k_onset: 0, reference_spacing: 0.01}\n");
+    put("both_spacings.yaml", text);
+    snprintf(want, sizeof want,
+             "%s/both_spacings.yaml:8:44: effects.history.reference_spacing: give the "
+             "material's (fluid) or the history's, not both",
+             dir);
+    expect_error("both_spacings.yaml", want);
 }
 
 /* The shipped material at its reference spacing (2 cm) and at 3 cm. */

@@ -554,7 +554,7 @@ static void test_periodic(void)
 }
 
 /* effects.carreau_yasuda: cfl is 0 (off) or in (0,1) as documented; dt_max only with cfl,
- * refused at its place in the file (the fluid's own check names no place). */
+ * refused at its value in the file (the fluid's check refuses it; the loader names the place). */
 static void test_cy_ranges(void)
 {
 #define CY_HEAD "duration: 1\nfluid:\n  model: carreau_yasuda\n  spacing: 0.01\n  blocks:\n" \
@@ -565,14 +565,130 @@ static void test_cy_ranges(void)
     CHECK(rc == 0 && s && s->fluid.cy.cfl == 0, "cfl: 0 (off): %s", err);
     stf_scene_free(s);
     EXPECT_ERROR(CY_HEAD "    dt_max: 0.001\n",
-                 "t.yaml:9:5: effects.carreau_yasuda.dt_max: only with cfl", NULL);
+                 "t.yaml:9:13: effects.carreau_yasuda.dt_max: only with cfl", NULL);
 #undef CY_HEAD
+}
+
+/* The fluid def's ranges are stf_fluid_check_def's: the loader reports the field it refuses
+ * at the place it came from (FILE:LINE:COL of its value, or the --set), with its scene key.
+ * One key per line; a case replaces lines of def_scene (gravity has no range but
+ * finiteness, which the loader's number check holds). */
+static const char *const def_scene[] = {
+    "duration: 1",                                        /* 1 */
+    "fluid:",                                             /* 2 */
+    "  spacing: 0.01",                                    /* 3 */
+    "  jitter: 0.2",                                      /* 4 */
+    "  blocks: [{min: [0, 0, 0], max: [0.1, 0.1, 0.1]}]", /* 5 */
+    "effects:",                                           /* 6 */
+    "  gravity: {}",                                      /* 7 */
+    "  viscosity:",                                       /* 8 */
+    "    sigma: 2",                                       /* 9 */
+    "  pressure:",                                        /* 10 */
+    "    k: 1000",                                        /* 11 */
+    "  springs:",                                         /* 12 */
+    "    k_min: 100",                                     /* 13 */
+    "  history:",                                         /* 14 */
+    "    k_onset: 0",                                     /* 15 */
+    "  boundary_stick:",                                  /* 16 */
+    "    stick: 200",                                     /* 17 */
+    NULL};
+
+/* def_scene with line l1 (and l2, if > 0) replaced by t1 (t2). */
+static const char *def_text(int l1, const char *t1, int l2, const char *t2)
+{
+    static char text[2048];
+    size_t n = 0;
+    for (int i = 0; def_scene[i]; i++) {
+        const char *line = i + 1 == l1 ? t1 : i + 1 == l2 ? t2 : def_scene[i];
+        n += (size_t)snprintf(text + n, sizeof text - n, "%s\n", line);
+    }
+    return text;
+}
+
+static void test_def_check_places(void)
+{
+    char err[512] = "";
+    stf_scene *s = NULL;
+    int rc =
+        stf_scene_load_string("t.yaml", def_text(0, NULL, 0, NULL), NULL, 0, &s, err, sizeof err);
+    CHECK(rc == 0 && s, "the def scene: %s", err);
+    stf_scene_free(s);
+    /* the fluid section, each effect, and fields refused together with another */
+    EXPECT_ERROR(def_text(3, "  spacing: 2", 0, NULL),
+                 "t.yaml:3:12: fluid.spacing: must be > 0 and <= 1 m (got 2)", NULL);
+    EXPECT_ERROR(def_text(4, "  jitter: 0.5", 0, NULL),
+                 "t.yaml:4:11: fluid.jitter: must be in [0, 0.45] (got 0.5)", NULL);
+    EXPECT_ERROR(def_text(4, "  h: 0.06", 0, NULL),
+                 "t.yaml:4:6: fluid.h: must be 0 or in [spacing, 5*spacing] (got 0.06)", NULL);
+    EXPECT_ERROR(def_text(4, "  iterations: 65", 0, NULL),
+                 "t.yaml:4:15: fluid.iterations: must be in [1, 64] (got 65)", NULL);
+    EXPECT_ERROR(def_text(9, "    sigma: -1", 0, NULL),
+                 "t.yaml:9:12: effects.viscosity.sigma: must be >= 0 (got -1)", NULL);
+    EXPECT_ERROR(def_text(11, "    k: 0", 0, NULL),
+                 "t.yaml:11:8: effects.pressure.k: must be > 0 (got 0)", NULL);
+    EXPECT_ERROR(def_text(13, "    yield_ratio: 2", 0, NULL),
+                 "t.yaml:13:18: effects.springs.yield_ratio: must be in [0,1] (got 2)", NULL);
+    EXPECT_ERROR(def_text(13, "    damping: 0.1", 0, NULL), /* stf_fluid_create refused it */
+                 "t.yaml:13:14: effects.springs.damping: needs relaxation gauss_seidel", NULL);
+    EXPECT_ERROR(def_text(15, "    k_onset: -1", 0, NULL),
+                 "t.yaml:15:14: effects.history.k_onset: must be >= 0 (got -1)", NULL);
+    EXPECT_ERROR(def_text(15, "    d: 100001", 0, NULL),
+                 "t.yaml:15:8: effects.history.d: must be >= 1 and <= 100000 (got 100001)", NULL);
+    EXPECT_ERROR(def_text(4, "  reference_spacing: 0.02", 15, "    reference_spacing: 0.01"),
+                 "t.yaml:15:24: effects.history.reference_spacing: give the material's (fluid) "
+                 "or the history's, not both",
+                 NULL);
+    EXPECT_ERROR(def_text(4, "  reference_spacing: 0.02", 3, "  spacing: 0.01\n  h: 0.03"),
+                 "t.yaml:4:6: fluid.h: must be 0 (2 spacings) with a reference_spacing", NULL);
+    EXPECT_ERROR(def_text(17, "    stick: -1", 0, NULL),
+                 "t.yaml:17:12: effects.boundary_stick.stick: must be >= 0 (got -1)", NULL);
+    /* type errors stay the loader's */
+    EXPECT_ERROR(def_text(15, "    k_onset: lots", 0, NULL),
+                 "t.yaml:15:14: effects.history.k_onset: expected a number", NULL);
+    EXPECT_ERROR(def_text(15, "    k_onset: .inf", 0, NULL),
+                 "t.yaml:15:14: effects.history.k_onset: must be a finite number", NULL);
+    /* the Carreau-Yasuda parameters (cy_check_def) */
+#define CY_DEF                                                                                     \
+    "duration: 1\nfluid:\n  model: carreau_yasuda\n  spacing: 0.01\n  blocks:\n"                   \
+    "    - {min: [0, 0, 0], max: [0.1, 0.1, 0.1]}\neffects:\n  carreau_yasuda:\n"
+    EXPECT_ERROR(CY_DEF "    mu0: -1\n",
+                 "t.yaml:9:10: effects.carreau_yasuda.mu0: must be >= 0 (got -1)", NULL);
+    EXPECT_ERROR(CY_DEF "    relaxation: 2\n",
+                 "t.yaml:9:17: effects.carreau_yasuda.relaxation: must be in (0,1]", NULL);
+    /* max_pressure_iterations (its default, 100) is refused where min was given */
+    EXPECT_ERROR(CY_DEF "    min_pressure_iterations: 500\n",
+                 "t.yaml:9:30: effects.carreau_yasuda.max_pressure_iterations: must be >= "
+                 "min_pressure_iterations (got 100)",
+                 NULL);
+#undef CY_DEF
+    /* --set: the override is named, as for every value it gives */
+    stf_override set_onset[] = {{"effects.history.k_onset", "-5"}};
+    rc = stf_scene_load_string("t.yaml", def_text(0, NULL, 0, NULL), set_onset, 1, &s, err,
+                               sizeof err);
+    CHECK(rc == 2 && strstr(err, "--set effects.history.k_onset=-5: effects.history.k_onset: "
+                                 "must be >= 0 (got -5)") == err,
+          "--set k_onset: %s", err);
+    stf_override set_near[] = {{"effects.pressure.k_near", "-1"}}; /* a key the file lacks */
+    rc = stf_scene_load_string("t.yaml", def_text(0, NULL, 0, NULL), set_near, 1, &s, err,
+                               sizeof err);
+    CHECK(rc == 2 && strstr(err, "--set effects.pressure.k_near=-1: effects.pressure.k_near: "
+                                 "must be >= 0 (got -1)") == err,
+          "--set k_near: %s", err);
+    stf_override set_jitter[] = {{"fluid.jitter", "1"}};
+    rc = stf_scene_load_string("t.yaml", def_text(0, NULL, 0, NULL), set_jitter, 1, &s, err,
+                               sizeof err);
+    CHECK(rc == 2 && strstr(err, "--set fluid.jitter=1: fluid.jitter: must be in [0, 0.45]") == err,
+          "--set jitter: %s", err);
+    /* the fluid section is checked before its blocks: a bad spacing comes first */
+    EXPECT_ERROR("duration: 1\nfluid:\n  spacing: 5\n  blocks: 3\n",
+                 "t.yaml:3:12: fluid.spacing: must be > 0 and <= 1 m", NULL);
 }
 
 int main(void)
 {
     test_periodic();
     test_cy_ranges();
+    test_def_check_places();
     test_ball_block();
     test_full();
     test_defaults();

@@ -41,7 +41,7 @@ typedef struct mapv {
     char path[128];       /* dotted path, "" at top level */
 } mapv;
 
-enum range { R_ANY, R_POS, R_NONNEG, R_UNIT, R_OPEN_UNIT, R_HALF_UNIT };
+enum range { R_ANY, R_POS, R_NONNEG, R_UNIT, R_HALF_UNIT };
 
 /* ------------------------------------------------------------------- locations, errors */
 
@@ -238,11 +238,7 @@ static int missing(loader *L, const mapv *m, const char *key, const char *why)
 
 static int range_ok(double v, int range, const char **msg)
 {
-    static const char *const msgs[] = {"",
-                                       "must be > 0",
-                                       "must be >= 0",
-                                       "must be in [0,1]",
-                                       "must be in (0,1)",
+    static const char *const msgs[] = {"", "must be > 0", "must be >= 0", "must be in [0,1]",
                                        "must be in [0,1)"};
     int ok = 1;
     switch (range) {
@@ -254,9 +250,6 @@ static int range_ok(double v, int range, const char **msg)
         break;
     case R_UNIT:
         ok = v >= 0 && v <= 1;
-        break;
-    case R_OPEN_UNIT:
-        ok = v > 0 && v < 1;
         break;
     case R_HALF_UNIT:
         ok = v >= 0 && v < 1;
@@ -383,6 +376,15 @@ static int get_str(loader *L, const mapv *m, const char *key, char *out, size_t 
     return 1;
 }
 
+/* An int field of the fluid's def: any int here (its range is the def check's). */
+static int get_count(loader *L, const mapv *m, const char *key, int *out)
+{
+    long v = *out;
+    int r = get_int(L, m, key, INT_MIN, INT_MAX, &v);
+    if (r > 0) *out = (int)v;
+    return r;
+}
+
 /* Required variants: a missing key is an error. */
 static int need_num(loader *L, const mapv *m, const char *key, int range, double *out)
 {
@@ -426,6 +428,120 @@ static int normalise(double *v, int n)
     for (int i = 0; i < n; i++)
         v[i] /= s;
     return 0;
+}
+
+/* ------------------------------------------------------------------ the fluid's def check */
+
+/* The scene key of each field of the fluid's def (stf_fluid_check_def names the field it
+ * refuses: a member of stf_fluid_def); alt, when the field may be refused with its own key
+ * absent (its default), is the key that made it wrong. */
+static const struct def_key {
+    const char *field, *key, *alt;
+} def_keys[] = {
+    {"effects", "effects", NULL},
+    {"model", "fluid.model", NULL},
+    {"spacing", "fluid.spacing", NULL},
+    {"density", "fluid.density", NULL},
+    {"jitter", "fluid.jitter", NULL},
+    {"h", "fluid.h", NULL},
+    {"material_spacing", "fluid.reference_spacing", NULL},
+    {"relaxation", "fluid.relaxation", NULL},
+    {"iterations", "fluid.iterations", NULL},
+    {"gravity", "effects.gravity.g", NULL},
+    {"sigma", "effects.viscosity.sigma", NULL},
+    {"beta", "effects.viscosity.beta", NULL},
+    {"k", "effects.pressure.k", NULL},
+    {"k_near", "effects.pressure.k_near", NULL},
+    {"rest_density", "effects.pressure.rest_density", NULL},
+    {"k_min", "effects.springs.k_min", NULL},
+    {"yield_ratio", "effects.springs.yield_ratio", NULL},
+    {"plasticity", "effects.springs.plasticity", NULL},
+    {"liquid_plasticity", "effects.springs.liquid_plasticity", NULL},
+    {"spring_damping", "effects.springs.damping", NULL},
+    {"q", "effects.history.q", NULL},
+    {"d", "effects.history.d", NULL},
+    {"memory", "effects.history.memory", NULL},
+    {"k_hist", "effects.history.k_hist", NULL},
+    {"reference_spacing", "effects.history.reference_spacing", NULL},
+    {"k_onset", "effects.history.k_onset", NULL},
+    {"history_mode", "effects.history.mode", NULL},
+    {"history_velocity", "effects.history.velocity", NULL},
+    {"terms", "effects.history.terms", NULL},
+    {"stick", "effects.boundary_stick.stick", NULL},
+    {"cy.mu0", "effects.carreau_yasuda.mu0", NULL},
+    {"cy.mu_inf", "effects.carreau_yasuda.mu_inf", NULL},
+    {"cy.K", "effects.carreau_yasuda.K", NULL},
+    {"cy.alpha", "effects.carreau_yasuda.alpha", NULL},
+    {"cy.n", "effects.carreau_yasuda.n", NULL},
+    {"cy.eta", "effects.carreau_yasuda.eta", NULL},
+    {"cy.min_pressure_iterations", "effects.carreau_yasuda.min_pressure_iterations", NULL},
+    {"cy.max_pressure_iterations", "effects.carreau_yasuda.max_pressure_iterations",
+     "effects.carreau_yasuda.min_pressure_iterations"},
+    {"cy.viscosity_solver", "effects.carreau_yasuda.viscosity_solver", NULL},
+    {"cy.viscosity_form", "effects.carreau_yasuda.viscosity_form", NULL},
+    {"cy.cg_tolerance", "effects.carreau_yasuda.cg_tolerance", NULL},
+    {"cy.max_cg_iterations", "effects.carreau_yasuda.max_cg_iterations", NULL},
+    {"cy.cfl", "effects.carreau_yasuda.cfl", NULL},
+    {"cy.dt_max", "effects.carreau_yasuda.dt_max", NULL},
+    {"cy.warm_start", "effects.carreau_yasuda.warm_start", NULL},
+    {"cy.relaxation", "effects.carreau_yasuda.relaxation", NULL},
+    {"periodic", "container.periodic", NULL},
+    {"periodic_origin", "container.position", NULL},
+};
+
+/* The value at a dotted key path of the document (overrides applied, material merged);
+ * *keyn its key node. NULL (and *keyn NULL) when a key on the way is absent. */
+static struct fy_node *node_at(loader *L, const char *path, struct fy_node **keyn)
+{
+    struct fy_node *cur = fy_document_root(L->fyd);
+    char comp[128];
+    *keyn = NULL;
+    for (const char *p = path;; p += strcspn(p, ".") + 1) {
+        size_t n = strcspn(p, ".");
+        struct fy_node_pair *pair = NULL;
+        if (n < sizeof comp && cur && fy_node_is_mapping(cur)) {
+            memcpy(comp, p, n);
+            comp[n] = '\0';
+            pair = fy_node_mapping_lookup_pair_by_string(cur, comp, FY_NT);
+        }
+        if (!pair) return NULL;
+        cur = fy_node_pair_value(pair);
+        if (!p[n]) return *keyn = fy_node_pair_key(pair), cur;
+    }
+}
+
+/* Checks the fluid's def read so far with stf_fluid_check_def, the one check of its ranges,
+ * and reports a refused field at the node it came from: FILE:LINE:COL (the scene's or the
+ * material's) or the --set that gave it, with its scene key and the check's message after
+ * the field's name. Before the effects are read (effects_read 0) they count as none, and
+ * their parameters still hold the defaults: only the fluid section's own keys are checked. */
+static int check_fluid(loader *L, int effects_read)
+{
+    stf_fluid_def d = L->s->fluid;
+    char msg[256];
+    const char *field = NULL;
+    if (!effects_read) d.effects = 0;
+    if (stf_fluid_check_def(&d, msg, sizeof msg, &field) == 0) return 0;
+    const struct def_key *dk = NULL;
+    for (size_t i = 0; field && i < sizeof def_keys / sizeof def_keys[0] && !dk; i++)
+        if (!strcmp(field, def_keys[i].field)) dk = &def_keys[i];
+    if (!dk) return fail(L, NULL, NULL, "fluid", "%s", msg); /* a field no key sets */
+    /* the message is "NAME: what is wrong" */
+    const char *what = msg + strspn(msg, "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
+                                         "0123456789_");
+    what = what[0] == ':' && what[1] == ' ' ? what + 2 : msg;
+    struct fy_node *k, *v = node_at(L, dk->key, &k);
+    if (!k && dk->alt) v = node_at(L, dk->alt, &k);
+    if (!k) { /* the nearest section given, at its key */
+        char up[128];
+        snprintf(up, sizeof up, "%s", dk->key);
+        for (char *dot; !k && (dot = strrchr(up, '.'));) {
+            *dot = '\0';
+            node_at(L, up, &k);
+        }
+        v = k;
+    }
+    return fail(L, v, k, dk->key, "%s", what);
 }
 
 /* ----------------------------------------------------------------------- the sections */
@@ -492,28 +608,22 @@ static int parse_fluid(loader *L, const mapv *top)
     if (get_choice(L, &m, "model", models, &model) < 0) return SCENE_BAD;
     if (has(&m, "model"))
         f->model = model ? STF_MODEL_CARREAU_YASUDA : STF_MODEL_CLAVET_STF;
-    if (need_num(L, &m, "spacing", R_POS, &f->spacing)) return SCENE_BAD;
-    if (f->spacing > 1) return fail_value(L, &m, "spacing", "must be > 0 and <= 1");
-    if (get_num(L, &m, "density", R_POS, &f->density) < 0) return SCENE_BAD;
-    if (get_num(L, &m, "h", R_NONNEG, &f->h) < 0) return SCENE_BAD;
-    if (get_num(L, &m, "reference_spacing", R_NONNEG, &f->material_spacing) < 0) return SCENE_BAD;
-    if (f->material_spacing > 1) return fail_value(L, &m, "reference_spacing", "must be <= 1 m");
-    if (f->material_spacing > 0 && f->h > 0)
-        return fail_value(L, &m, "h", "must be 0 (2 spacings) with a reference_spacing: the "
-                                      "material scales with h / spacing fixed");
-    if (f->h > 0 && (f->h < f->spacing || f->h > 5 * f->spacing))
-        return fail_value(L, &m, "h", "must be 0 (= 2*spacing) or in [spacing, 5*spacing]");
-    if (get_num(L, &m, "jitter", R_NONNEG, &f->jitter) < 0) return SCENE_BAD;
+    /* the def's fields are numbers here; their ranges are the def check's (check_fluid) */
+    if (need_num(L, &m, "spacing", R_ANY, &f->spacing)) return SCENE_BAD;
+    if (get_num(L, &m, "density", R_ANY, &f->density) < 0 ||
+        get_num(L, &m, "h", R_ANY, &f->h) < 0 ||
+        get_num(L, &m, "reference_spacing", R_ANY, &f->material_spacing) < 0 ||
+        get_num(L, &m, "jitter", R_ANY, &f->jitter) < 0)
+        return SCENE_BAD;
     /* the Carreau-Yasuda projection turns a jittered lattice's density errors into velocity
        (h (rho - rho0) / (rho0 dt) in one step): its blocks start on the lattice by default */
     if (f->model == STF_MODEL_CARREAU_YASUDA && !has(&m, "jitter")) f->jitter = 0;
-    if (f->jitter > 0.45) return fail_value(L, &m, "jitter", "must be in [0, 0.45]");
     int relax;
     if (get_choice(L, &m, "relaxation", relaxations, &relax) < 0) return SCENE_BAD;
     if (has(&m, "relaxation")) f->relaxation = relax ? STF_RELAX_GAUSS_SEIDEL : STF_RELAX_JACOBI;
-    long it = f->iterations;
-    if (get_int(L, &m, "iterations", 1, 64, &it) < 0) return SCENE_BAD;
-    f->iterations = (int)it;
+    if (get_count(L, &m, "iterations", &f->iterations) < 0) return SCENE_BAD;
+    /* the fluid's own keys are checked before its blocks and the effects are read */
+    if (check_fluid(L, 0)) return SCENE_BAD;
     if (get_num(L, &m, "settle", R_NONNEG, &L->s->settle) < 0) return SCENE_BAD;
     if (L->s->settle > 10) return fail_value(L, &m, "settle", "must be in [0, 10] s");
     if (!(L->s->settle / L->s->dt < STF_MAX_STEPS + 0.5)) {
@@ -531,28 +641,26 @@ static int parse_history(loader *L, const mapv *h)
     static const char *const velocities[] = {"particle", "smoothed", NULL}; /* enum order */
     int vel = 0;
     stf_fluid_def *f = &L->s->fluid;
-    long d = 1, terms = 16;
     int mode = 0, rd, rm;
-    if (get_num(L, h, "q", R_OPEN_UNIT, &f->q) < 0) return SCENE_BAD;
-    if ((rd = get_int(L, h, "d", 1, 100000, &d)) < 0) return SCENE_BAD;
-    if ((rm = get_num(L, h, "memory", R_POS, &f->memory)) < 0) return SCENE_BAD;
+    if (get_num(L, h, "q", R_ANY, &f->q) < 0) return SCENE_BAD;
+    if ((rd = get_count(L, h, "d", &f->d)) < 0) return SCENE_BAD;
+    if ((rm = get_num(L, h, "memory", R_ANY, &f->memory)) < 0) return SCENE_BAD;
     if (rd && rm) return fail_key(L, h, "memory", "give either d or memory, not both");
-    if (rd) {
-        f->d = (int)d;
-        f->memory = 0; /* memory > 0 would override d */
-    }
-    if (get_num(L, h, "k_hist", R_NONNEG, &f->k_hist) < 0) return SCENE_BAD;
-    if (get_num(L, h, "reference_spacing", R_NONNEG, &f->reference_spacing) < 0) return SCENE_BAD;
-    if (get_num(L, h, "k_onset", R_NONNEG, &f->k_onset) < 0) return SCENE_BAD;
+    /* memory 0 is the def's "no memory: d is the window": a scene says that by giving d */
+    if (rm && !(f->memory > 0)) return fail_value(L, h, "memory", "must be > 0 (or give d)");
+    if (rd) f->memory = 0; /* memory > 0 would override d */
+    if (get_num(L, h, "k_hist", R_ANY, &f->k_hist) < 0 ||
+        get_num(L, h, "reference_spacing", R_ANY, &f->reference_spacing) < 0 ||
+        get_num(L, h, "k_onset", R_ANY, &f->k_onset) < 0)
+        return SCENE_BAD;
     if (get_choice(L, h, "mode", modes, &mode) < 0) return SCENE_BAD;
     if (has(h, "mode")) f->history_mode = mode; /* the order of enum stf_history_mode */
     if (get_choice(L, h, "velocity", velocities, &vel) < 0) return SCENE_BAD;
     if (has(h, "velocity")) f->history_velocity = vel;
-    int rt = get_int(L, h, "terms", 1, 64, &terms);
+    int rt = get_count(L, h, "terms", &f->terms);
     if (rt < 0) return SCENE_BAD;
     if (rt && f->history_mode != STF_HISTORY_SOE)
         return fail_key(L, h, "terms", "only with mode: soe");
-    if (rt) f->terms = (int)terms;
     double steps = rm ? f->memory / L->s->dt : 1; /* the window is d = round(memory / dt) */
     if (f->history_mode == STF_HISTORY_WINDOW && !(steps >= 0.5 && steps < 100000.5)) {
         char what[160];
@@ -569,30 +677,20 @@ static int parse_carreau_yasuda(loader *L, const mapv *p)
     static const char *const solvers[] = {"implicit", "explicit", NULL};
     static const char *const forms[] = {"morris", "central", NULL};
     stf_cy_def *c = &L->s->fluid.cy;
-    long it;
-    int r, solver;
-    if (get_num(L, p, "mu0", R_NONNEG, &c->mu0) < 0 ||
-        get_num(L, p, "mu_inf", R_NONNEG, &c->mu_inf) < 0 ||
-        get_num(L, p, "K", R_NONNEG, &c->K) < 0 || get_num(L, p, "alpha", R_POS, &c->alpha) < 0 ||
-        get_num(L, p, "n", R_POS, &c->n) < 0 || get_num(L, p, "eta", R_OPEN_UNIT, &c->eta) < 0 ||
-        get_num(L, p, "cg_tolerance", R_OPEN_UNIT, &c->cg_tolerance) < 0 ||
-        get_num(L, p, "cfl", R_HALF_UNIT, &c->cfl) < 0 || /* 0: off */
-        get_num(L, p, "dt_max", R_NONNEG, &c->dt_max) < 0 ||
-        get_num(L, p, "warm_start", R_UNIT, &c->warm_start) < 0 ||
-        get_num(L, p, "relaxation", R_UNIT, &c->relaxation) < 0)
+    int solver;
+    if (get_num(L, p, "mu0", R_ANY, &c->mu0) < 0 ||
+        get_num(L, p, "mu_inf", R_ANY, &c->mu_inf) < 0 || get_num(L, p, "K", R_ANY, &c->K) < 0 ||
+        get_num(L, p, "alpha", R_ANY, &c->alpha) < 0 || get_num(L, p, "n", R_ANY, &c->n) < 0 ||
+        get_num(L, p, "eta", R_ANY, &c->eta) < 0 ||
+        get_num(L, p, "cg_tolerance", R_ANY, &c->cg_tolerance) < 0 ||
+        get_num(L, p, "cfl", R_ANY, &c->cfl) < 0 ||
+        get_num(L, p, "dt_max", R_ANY, &c->dt_max) < 0 ||
+        get_num(L, p, "warm_start", R_ANY, &c->warm_start) < 0 ||
+        get_num(L, p, "relaxation", R_ANY, &c->relaxation) < 0 ||
+        get_count(L, p, "min_pressure_iterations", &c->min_pressure_iterations) < 0 ||
+        get_count(L, p, "max_pressure_iterations", &c->max_pressure_iterations) < 0 ||
+        get_count(L, p, "max_cg_iterations", &c->max_cg_iterations) < 0)
         return SCENE_BAD;
-    if (c->dt_max > 0 && !(c->cfl > 0)) /* the fluid refuses it too, naming no place */
-        return fail_key(L, p, "dt_max", "only with cfl (> 0)");
-    if ((r = get_int(L, p, "min_pressure_iterations", 1, 10000, &it)) < 0) return SCENE_BAD;
-    if (r) c->min_pressure_iterations = (int)it;
-    if ((r = get_int(L, p, "max_pressure_iterations", 1, 10000, &it)) < 0) return SCENE_BAD;
-    if (r) c->max_pressure_iterations = (int)it;
-    if (c->max_pressure_iterations < c->min_pressure_iterations)
-        return fail_value(L, p, has(p, "max_pressure_iterations") ? "max_pressure_iterations"
-                                                                   : "min_pressure_iterations",
-                          "max_pressure_iterations must be >= min_pressure_iterations");
-    if ((r = get_int(L, p, "max_cg_iterations", 1, 100000, &it)) < 0) return SCENE_BAD;
-    if (r) c->max_cg_iterations = (int)it;
     if (get_choice(L, p, "viscosity_solver", solvers, &solver) < 0) return SCENE_BAD;
     if (has(p, "viscosity_solver"))
         c->viscosity_solver = solver ? STF_VISCOSITY_EXPLICIT : STF_VISCOSITY_IMPLICIT;
@@ -611,27 +709,31 @@ static int parse_effect_params(loader *L, int e, const mapv *p)
     case 0:
         return get_vec(L, p, "g", R_ANY, 3, f->gravity) < 0 ? SCENE_BAD : 0;
     case 1:
-        if (get_num(L, p, "sigma", R_NONNEG, &f->sigma) < 0) return SCENE_BAD;
-        return get_num(L, p, "beta", R_NONNEG, &f->beta) < 0 ? SCENE_BAD : 0;
+        if (get_num(L, p, "sigma", R_ANY, &f->sigma) < 0) return SCENE_BAD;
+        return get_num(L, p, "beta", R_ANY, &f->beta) < 0 ? SCENE_BAD : 0;
     case 2:
-        if (get_num(L, p, "k", R_POS, &f->k) < 0) return SCENE_BAD;
-        if (get_num(L, p, "k_near", R_NONNEG, &f->k_near) < 0) return SCENE_BAD;
+        if (get_num(L, p, "k", R_ANY, &f->k) < 0) return SCENE_BAD;
+        if (get_num(L, p, "k_near", R_ANY, &f->k_near) < 0) return SCENE_BAD;
         if (get_bool(L, p, "tension", &f->tension) < 0) return SCENE_BAD;
 
-        return get_num(L, p, "rest_density", R_NONNEG, &f->rest_density) < 0 ? SCENE_BAD : 0;
-    case 3:
-        if (get_num(L, p, "k_min", R_NONNEG, &f->k_min) < 0) return SCENE_BAD;
-        if (get_num(L, p, "yield_ratio", R_UNIT, &f->yield_ratio) < 0) return SCENE_BAD;
-        if (get_num(L, p, "damping", R_NONNEG, &f->spring_damping) < 0) return SCENE_BAD;
-        if (f->spring_damping > 1) return fail_value(L, p, "damping", "must be <= 1 s");
-        if (get_num(L, p, "liquid_plasticity", R_NONNEG, &f->liquid_plasticity) < 0) return SCENE_BAD;
-        return get_num(L, p, "plasticity", R_NONNEG, &f->plasticity) < 0 ? SCENE_BAD : 0;
+        return get_num(L, p, "rest_density", R_ANY, &f->rest_density) < 0 ? SCENE_BAD : 0;
+    case 3: {
+        if (get_num(L, p, "k_min", R_ANY, &f->k_min) < 0) return SCENE_BAD;
+        if (get_num(L, p, "yield_ratio", R_ANY, &f->yield_ratio) < 0) return SCENE_BAD;
+        if (get_num(L, p, "damping", R_ANY, &f->spring_damping) < 0) return SCENE_BAD;
+        int r = get_num(L, p, "liquid_plasticity", R_ANY, &f->liquid_plasticity);
+        if (r < 0) return SCENE_BAD;
+        /* < 0 is the def's "as plasticity": a scene says that by leaving the key out */
+        if (r && f->liquid_plasticity < 0)
+            return fail_value(L, p, "liquid_plasticity", "must be >= 0 (without it: plasticity)");
+        return get_num(L, p, "plasticity", R_ANY, &f->plasticity) < 0 ? SCENE_BAD : 0;
+    }
     case 4:
         return parse_history(L, p);
     case 6:
         return parse_carreau_yasuda(L, p);
     default:
-        return get_num(L, p, "stick", R_NONNEG, &f->stick) < 0 ? SCENE_BAD : 0;
+        return get_num(L, p, "stick", R_ANY, &f->stick) < 0 ? SCENE_BAD : 0;
     }
 }
 
@@ -1192,8 +1294,9 @@ static int parse_scene(loader *L)
         return fail_value(L, &top, rate ? "frame_rate" : "dt", why);
     }
     s->fluid = stf_default_fluid_def();
-    if (parse_fluid(L, &top) || parse_effects(L, &top) || parse_container(L, &top) ||
-        check_blocks_inside(L) || parse_bodies(L, &top) || parse_expect(L, &top))
+    if (parse_fluid(L, &top) || parse_effects(L, &top) || check_fluid(L, 1) ||
+        parse_container(L, &top) || check_blocks_inside(L) || parse_bodies(L, &top) ||
+        parse_expect(L, &top))
         return SCENE_BAD;
     if (s->nbodies > 0 && (s->fluid.periodic[0] > 0 || s->fluid.periodic[1] > 0))
         return fail_key(L, &top, "bodies",
