@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include "cli.h"
+#include "body_mesh.h"
 #include "canvas.h"
 #include "h5io.h"
 #include "pictures.h"
@@ -161,50 +162,24 @@ static void scene_view_free(scene_view *v)
     if (v->r) stf_h5r_close(v->r);
 }
 
-/* Brute-force hull faces of a few points: every triangle with all points on one side. */
+/* The hull faces of a box's corners or a convex body's points: the triangles of the body's
+ * mesh (src/io/body_mesh.c, the one the XDMF sidecar holds), whose vertices are the points in
+ * their order, so the faces index b->points. */
 static void hull_faces(body_view *b)
 {
-    int n = b->npoints;
-    if (n < 4 || n > 64) return;
-    int cap = 64, nt = 0;
-    int *t = malloc(3 * (size_t)cap * sizeof *t);
-    if (!t) return;
-    const double *p = b->points;
-    double scale = 0;
-    for (int i = 0; i < 3 * n; i++) scale = fmax(scale, fabs(p[i]));
-    double eps = 1e-9 * scale * scale * scale + 1e-30;
-    for (int i = 0; i < n; i++)
-        for (int j = i + 1; j < n; j++)
-            for (int k = j + 1; k < n; k++) {
-                double a[3], c[3], nrm[3];
-                sub3(p + 3 * j, p + 3 * i, a);
-                sub3(p + 3 * k, p + 3 * i, c);
-                cross3(a, c, nrm);
-                if (sqrt(dot3(nrm, nrm)) < 1e-12 * scale * scale) continue;
-                int pos = 0, neg = 0;
-                for (int m = 0; m < n && !(pos && neg); m++) {
-                    if (m == i || m == j || m == k) continue;
-                    double d[3];
-                    sub3(p + 3 * m, p + 3 * i, d);
-                    double s = dot3(nrm, d);
-                    if (s > eps) pos = 1;
-                    else if (s < -eps) neg = 1;
-                }
-                if (pos && neg) continue;
-                if (nt == cap) {
-                    int *nt2 = realloc(t, 3 * 2 * (size_t)cap * sizeof *t);
-                    if (!nt2) break;
-                    t = nt2;
-                    cap *= 2;
-                }
-                /* orient outwards: the other points lie behind the face */
-                t[3 * nt] = i;
-                t[3 * nt + 1] = pos ? k : j;
-                t[3 * nt + 2] = pos ? j : k;
-                nt++;
-            }
-    b->tris = t;
-    b->ntris = nt;
+    stf_collider_def d = stf_default_collider_def();
+    d.shape = STF_SHAPE_CONVEX;
+    d.points = b->points;
+    d.npoints = b->npoints;
+    stf_mesh m;
+    if (stf_mesh_build(&d, &m) != 0) return;
+    int *t = malloc(3 * (size_t)m.nt * sizeof *t);
+    if (t) {
+        for (int i = 0; i < 3 * m.nt; i++) t[i] = m.t[i];
+        b->tris = t;
+        b->ntris = m.nt;
+    }
+    stf_mesh_free(&m);
 }
 
 static int load_view(const char *path, scene_view *v, char *err, size_t errlen)
