@@ -39,9 +39,9 @@ run gentle scenes/gentle_settle.yaml
 run vibration scenes/vibration.yaml
 run vibration_no_history scenes/vibration_no_history.yaml
 for t in vibration vibration_no_history; do
-    "$stf" render "$out/$t.h5" --color khist --max 20000 --frames 15,45,89 --width 300 --height 220 \
+    "$stf" render "$out/$t.h5" --color khist --max 4000000 --frames 15,45,89 --width 300 --height 220 \
         --camera 0.4,-0.5,0.45 --look 0,0,0.06 --montage "$pic/$t.png"
-    "$stf" render "$out/$t.h5" --color khist --max 20000 --frames 60,89 --width 400 --height 220 \
+    "$stf" render "$out/$t.h5" --color khist --max 4000000 --frames 60,89 --width 400 --height 220 \
         --camera 0,-0.75,0.13 --look 0,0,0.09 --montage "$pic/${t}_side.png"
 done
 

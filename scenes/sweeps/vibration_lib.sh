@@ -1,6 +1,9 @@
 # vibration_lib.sh - sourced by vibration_checks.sh and vibration_why.sh.
 # layer NAME HALF_WIDTH DEPTH HISTORY(0|1) D ONSET: a scene's head, 3 s at 1 cm, the bowling
-# pool's fluid in a box of the given half width and depth (m), with or without history
+# pool's fluid before the cornstarch material (its k_hist 2e5 at 2 cm without the material's
+# spacing scaling, pressure k 1000, no liquid springs) in a box of the given half width and
+# depth (m), with or without history: the set the "Not reproduced" measurements of
+# scenes/README.md were taken with
 layer() {
     cat <<YAML
 name: $1
