@@ -5,7 +5,7 @@
 # spacings for 0.3 s (tests/settling_scene.py; 8,136 particles, about 20 s of one core).
 # Holds (tests/settling_check.py --test):
 # - the sphere sinks at every row after its first 10 ms (a sphere let go at rest in Stokes
-#   flow settles without turning back; the sphere swung between -0.27 and +0.17 m/s);
+#   flow settles without turning back; a sphere that swings up and down fails);
 # - its speed over the second half lies between 0 and the unbounded Stokes speed (walls
 #   only slow it: minimum dissipation);
 # - the fluid's force stays below 10 [(rho_f V + M) g + rho_f A v^2 / 2], the bound of
