@@ -22,12 +22,12 @@ export OMP_NUM_THREADS=1 OMP_WAIT_POLICY=passive
 cases="3:0.25:inside:sphere 3:0.5:inside:sphere 3:0.75:half:sphere 3:4:inside:sphere
 3:0.5:above:sphere 3:0.5:half:box 1.5:0.25:inside:sphere 1.5:4:above:sphere"
 for model in cl cy; do
-for c in $cases; do
-    IFS=: read -r RS ratio place shape <<<"$c"
-    name=${model}_${RS}_${ratio}_${place}_${shape}
-    /usr/bin/python3 "$src/tests/body_sweep_scene.py" $model "$RS" "$ratio" "$place" "$shape" 1.0 > $name.yaml
-    "$stf" run $name.yaml -o $name.h5 --quiet 2>$name.txt || { fail "$name: exit $? ($(cat $name.txt))"; continue; }
-    /usr/bin/python3 - "$name" "$RS" "$ratio" "$place" "$shape" "$model" <<'PY' || fail "$name: see above"
+    for c in $cases; do
+        IFS=: read -r RS ratio place shape <<<"$c"
+        name=${model}_${RS}_${ratio}_${place}_${shape}
+        /usr/bin/python3 "$src/tests/body_sweep_scene.py" $model "$RS" "$ratio" "$place" "$shape" 1.0 > $name.yaml
+        "$stf" run $name.yaml -o $name.h5 --quiet 2>$name.txt || { fail "$name: exit $? ($(cat $name.txt))"; continue; }
+        /usr/bin/python3 - "$name" "$RS" "$ratio" "$place" "$shape" "$model" <<'PY' || fail "$name: see above"
 import sys, h5py, numpy as np
 name, RS, ratio, place, shape = sys.argv[1], float(sys.argv[2]), float(sys.argv[3]), sys.argv[4], sys.argv[5]
 model = sys.argv[6]
@@ -70,7 +70,7 @@ else:
 print("cli_body_sweep: " + msg)
 sys.exit(0 if ok else 1)
 PY
-done
+    done
 done
 if [ $fails -ne 0 ]; then
     echo "cli_body_sweep: $fails failure(s)" >&2

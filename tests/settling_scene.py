@@ -6,8 +6,7 @@
 # depth=D tank widths deep (default 2); the sphere starts one tank width below the surface,
 # held while the fluid settles around it for 0.3 s (fluid.settle). The projection runs to
 # eta = 1e-3 (the default 1e-2 lets the fluid column breathe at 1-2 cm/s, as fast as the
-# sphere falls). Optional key=value: nu, dt, eta, density, settle, depth, frame_rate, lid=1
-# (a static box on the surface).
+# sphere falls). Optional key=value: nu, dt, eta, density, settle, depth, frame_rate.
 import sys
 RS = float(sys.argv[1])
 lam = float(sys.argv[2]) if len(sys.argv) > 2 else 0.25
@@ -43,9 +42,4 @@ bodies:
     radius: {a}
     density: {kv.get('density', '7800')}
     position: [0, 0, {zc!r}]
-""" + (f"""  - name: lid
-    shape: box
-    motion: static
-    size: [{W + 2 * s!r}, {W + 2 * s!r}, {4 * s!r}]
-    position: [0, 0, {H + 2 * s!r}]
-""" if kv.get('lid', '0') == '1' else ""))
+""")
