@@ -18,6 +18,8 @@
 #include <stdlib.h>
 
 #define PI 3.14159265358979323846
+/* lattice layers of a wall within the support h <= 5 s: ceil(h / s) + 2 */
+#define WALL_LAYERS 7
 
 /* A neighbour pair: j and grad W_ij (1/m^4, float: the pair arrays are streamed on every
  * pass, so their size is the cost). */
@@ -56,6 +58,10 @@ typedef struct cy_state {
        (r^2 + 0.01 h^2): for a half-space, wall_cn n n^T + wall_ct (I - n n^T) by distance;
        for a container's quarter-space, in the frame of the two normals and the edge */
     double wall_cn[WALL_BINS + 1], wall_ct[WALL_BINS + 1];
+    /* The half-space's sums layer by layer (layer l: the lattice plane s (l + 1/2) inside the
+       solid), [l][0..4] = rho, grad, lap, cn, ct by distance: a sphere's wall weighs each
+       layer by its shell's curvature (sphere_term in cy_walls.c) */
+    double wall_layer[WALL_LAYERS][5][WALL_BINS + 1];
     double quad_c11[WALL_BINS + 1][WALL_BINS + 1], quad_c22[WALL_BINS + 1][WALL_BINS + 1];
     double quad_c12[WALL_BINS + 1][WALL_BINS + 1], quad_cee[WALL_BINS + 1][WALL_BINS + 1];
     double *lwm;         /* 9n (central): sum over walls of M_w, row-major */

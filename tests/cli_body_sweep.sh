@@ -4,7 +4,8 @@
 # (tests/body_sweep_scene.py), run for 1 s:
 # The same cases run in the Carreau-Yasuda fluid (model cy: Newtonian, nu = 3.8e-4 m^2/s),
 # where the force bound and the rise or sink are held and the draft is printed, not held:
-# measured -12.2 % to +5.8 % of the height (tests/README.md, the body sweep).
+# measured -6.2 % to +2.6 % of the height for the bodies that float within the 1 s, one still
+# rising (tests/README.md, the body sweep).
 # - the fluid's force never exceeds 10 [(rho_f V + M) g + rho_f A v^2 / 2] (weight and
 #   buoyancy, and the dynamic pressure on the cross-section A at the body's largest speed v:
 #   an order of magnitude above any force a body resting on, floating in or moving through

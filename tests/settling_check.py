@@ -1,7 +1,8 @@
 # settling_check.py OUT.h5 RS [LAMBDA] [key=value ...] [--test]: the settling sphere of
 # tests/settling_scene.py (the same RS, LAMBDA and nu=, density= as the scene) against
 # Stokes' law with the wall correction of its square tank. Prints one line. With --test it
-# also holds tests/cli_settling.sh's assertions (exit 1 if one fails).
+# also holds tests/cli_settling.sh's assertions, the speed within 15% among them (exit 1 if
+# one fails).
 #
 # Reference: U = U_Stokes / K, U_Stokes = 2/9 (rho_s - rho_f) g a^2 / mu (Re about 0.06 here:
 # Oseen's inertial correction, 3/16 Re, is 1 %, left out). K is the wall factor of a sphere
@@ -49,6 +50,8 @@ if not Fmax < bound:
 after = t > 0.01   # a sphere let go at rest settles without turning back (Stokes: monotone)
 if not np.all(v[after, 2] < 0):
     ok = False; print("settling: FAIL: the sphere rose (largest v_z %.4f m/s)" % v[after, 2].max())
+if not abs(err) <= 0.15:
+    ok = False; print("settling: FAIL: U %.5f m/s is %+.1f%% off the reference %.5f (tolerance 15%%)" % (Us, 100 * err, U))
 if not (0 < Us < U0):
     ok = False; print("settling: FAIL: U outside (0, unbounded Stokes %.5f)" % U0)
 sys.exit(0 if ok else 1)
