@@ -60,7 +60,7 @@ typedef struct cy_state {
     double wall_cn[WALL_BINS + 1], wall_ct[WALL_BINS + 1];
     /* The half-space's sums layer by layer (layer l: the lattice plane s (l + 1/2) inside the
        solid), [l][0..4] = rho, grad, lap, cn, ct by distance: a sphere's wall weighs each
-       layer by its shell's curvature (sphere_term in cy_walls.c) */
+       layer by its shell's curvature (sphere_at in cy_walls.c) */
     double wall_layer[WALL_LAYERS][5][WALL_BINS + 1];
     double quad_c11[WALL_BINS + 1][WALL_BINS + 1], quad_c22[WALL_BINS + 1][WALL_BINS + 1];
     double quad_c12[WALL_BINS + 1][WALL_BINS + 1], quad_cee[WALL_BINS + 1][WALL_BINS + 1];
