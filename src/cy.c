@@ -66,6 +66,8 @@ int stf_cy_check_def(const stf_fluid_def *d, char *err, size_t errlen)
              c->max_pressure_iterations);
     if (c->viscosity_solver != STF_VISCOSITY_IMPLICIT && c->viscosity_solver != STF_VISCOSITY_EXPLICIT)
         FAIL("viscosity_solver: must be implicit or explicit (got %d)", c->viscosity_solver);
+    if (c->pressure_solver != STF_PRESSURE_JACOBI && c->pressure_solver != STF_PRESSURE_CG)
+        FAIL("pressure_solver: must be jacobi or cg (got %d)", c->pressure_solver);
     if (c->viscosity_form != STF_VISCOSITY_MORRIS && c->viscosity_form != STF_VISCOSITY_CENTRAL)
         FAIL("viscosity_form: must be morris or central (got %d)", c->viscosity_form);
     if (!(c->cg_tolerance > 0 && c->cg_tolerance < 1))
@@ -197,7 +199,8 @@ static int cy_substep(stf_fluid *f, double dt)
             f->xprev[3 * i + a] = f->x[3 * i + a];
         }
     }
-    stf_cy_pressure_project(f, dt, w);
+    if (f->def.cy.pressure_solver == STF_PRESSURE_CG) stf_cy_pressure_project_cg(f, dt, w);
+    else stf_cy_pressure_project(f, dt, w);
     f->stage_seconds[STAGE_PRESSURE] += omp_get_wtime() - t0;
     /* positions are unchanged so far (xprev = x, set in the density pass): the checks look
        at the velocities */
@@ -331,12 +334,13 @@ int stf_cy_describe(const stf_fluid *f, char *buf, size_t len)
                     "model: carreau_yasuda\nmu0: %.9g  # m^2/s\nmu_inf: %.9g  # m^2/s\n"
                     "K: %.9g  # s\nalpha: %.9g\nn: %.9g\neta: %.9g\n"
                     "min_pressure_iterations: %d\nmax_pressure_iterations: %d\n"
-                    "viscosity_solver: %s\nviscosity_form: %s\ncg_tolerance: %.9g\n"
+                    "pressure_solver: %s\nviscosity_solver: %s\nviscosity_form: %s\ncg_tolerance: %.9g\n"
                     "max_cg_iterations: %d\n"
                     "cfl: %.9g\ndt_max: %.9g  # s\nwarm_start: %.9g\nrelaxation: %.9g\n"
                     "rest_density_cy: %.9g  # kg/m^3, kernel sum of the lattice\n",
                     c->mu0, c->mu_inf, c->K, c->alpha, c->n, c->eta, c->min_pressure_iterations,
                     c->max_pressure_iterations,
+                    c->pressure_solver == STF_PRESSURE_CG ? "cg" : "jacobi",
                     c->viscosity_solver == STF_VISCOSITY_EXPLICIT ? "explicit" : "implicit",
                     c->viscosity_form == STF_VISCOSITY_CENTRAL ? "central" : "morris",
                     c->cg_tolerance, c->max_cg_iterations, c->cfl, c->dt_max, c->warm_start,

@@ -159,6 +159,7 @@ void stf_cy_density_one(stf_fluid *f, int i);
 /* cy_pressure.c: Algorithm 1 on f->v for a substep of dt, w the warm start's weight (0: from
  * zero pressure; c->kappa, kr and ktot as the density pass left them). */
 void stf_cy_pressure_project(stf_fluid *f, double dt, double w);
+void stf_cy_pressure_project_cg(stf_fluid *f, double dt, double w);
 
 /* cy_viscosity.c: the viscosity step on f->v (v** -> v) for a substep of dt; leaves in c->r
  * the velocity the walls' viscous impulses are taken at (stf_cy_wall_reactions). */

@@ -72,6 +72,13 @@ enum stf_model {
     STF_MODEL_CARREAU_YASUDA = 1, /* Carreau-Yasuda SPH with pressure projection (second paper) */
 };
 
+/* The Carreau-Yasuda model's pressure projection (cy_pressure.c). */
+enum stf_pressure_solver {
+    STF_PRESSURE_JACOBI = 0, /* Algorithm 1: Jacobi with Eq. 21's k_i, each iteration's k_i >= 0 */
+    STF_PRESSURE_CG = 1,     /* ours: the same equations solved by conjugate gradients to eta,
+                                the pressure >= 0 in total (it may fall where the fluid expands) */
+};
+
 enum stf_viscosity_solver {
     STF_VISCOSITY_IMPLICIT = 0, /* backward Euler, conjugate gradients (Algorithm 2) */
     STF_VISCOSITY_EXPLICIT = 1, /* forward Euler (for comparison; limited by dt ~ h^2/nu) */
@@ -112,6 +119,7 @@ typedef struct stf_cy_def {
     double relaxation;     /* (0,1]: each Jacobi iteration applies this fraction of the k_i of
                               Eq. 21 (0 means 1, the paper's), dimensionless */
     int viscosity_form;    /* enum stf_viscosity_form (default morris) */
+    int pressure_solver;   /* enum stf_pressure_solver (default jacobi) */
 } stf_cy_def;
 
 /* What the Carreau-Yasuda solver did in the last step (zeros for the Clavet model). */

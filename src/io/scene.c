@@ -479,6 +479,7 @@ static const struct def_key {
      "effects.carreau_yasuda.min_pressure_iterations"},
     {"cy.viscosity_solver", "effects.carreau_yasuda.viscosity_solver", NULL},
     {"cy.viscosity_form", "effects.carreau_yasuda.viscosity_form", NULL},
+    {"cy.pressure_solver", "effects.carreau_yasuda.pressure_solver", NULL},
     {"cy.cg_tolerance", "effects.carreau_yasuda.cg_tolerance", NULL},
     {"cy.max_cg_iterations", "effects.carreau_yasuda.max_cg_iterations", NULL},
     {"cy.cfl", "effects.carreau_yasuda.cfl", NULL},
@@ -694,6 +695,10 @@ static int parse_carreau_yasuda(loader *L, const mapv *p)
     if (get_choice(L, p, "viscosity_solver", solvers, &solver) < 0) return SCENE_BAD;
     if (has(p, "viscosity_solver"))
         c->viscosity_solver = solver ? STF_VISCOSITY_EXPLICIT : STF_VISCOSITY_IMPLICIT;
+    static const char *const psolvers[] = {"jacobi", "cg", NULL};
+    int psolver;
+    if (get_choice(L, p, "pressure_solver", psolvers, &psolver) < 0) return SCENE_BAD;
+    if (has(p, "pressure_solver")) c->pressure_solver = psolver ? STF_PRESSURE_CG : STF_PRESSURE_JACOBI;
     int form;
     if (get_choice(L, p, "viscosity_form", forms, &form) < 0) return SCENE_BAD;
     if (has(p, "viscosity_form"))
@@ -746,7 +751,8 @@ static const char *const stick_keys[] = {"stick", NULL};
 static const char *const cy_keys[] = {"mu0", "mu_inf", "K", "alpha", "n", "eta",
                                       "min_pressure_iterations", "max_pressure_iterations",
                                       "viscosity_solver", "cg_tolerance", "max_cg_iterations",
-                                      "cfl", "dt_max", "warm_start", "relaxation", "viscosity_form", NULL};
+                                      "cfl", "dt_max", "warm_start", "relaxation", "viscosity_form",
+                                      "pressure_solver", NULL};
 
 static int parse_effects(loader *L, const mapv *top)
 {
