@@ -22,22 +22,12 @@
 
 #include <math.h>
 
-/* rho*_i (Eq. 19) from the velocities v. */
+static double div_one(const stf_fluid *f, const double *u, int i);
+
+/* rho*_i (Eq. 19) from the velocities v: rho_i + dt (D v - the walls' v_w . m grad W). */
 static double predict_one(const stf_fluid *f, const double *v, int i, double dt)
 {
-    const cy_state *c = f->cy;
-    double d0 = 0, d1 = 0, d2 = 0, m = f->mass;
-    const cy_pair *pr = c->pair + c->off[i], *end = c->pair + c->off[i + 1];
-    const double *vi = v + 3 * i;
-    for (; pr < end; pr++) {
-        const double *vj = v + 3 * pr->j;
-        d0 += (vi[0] - vj[0]) * pr->g[0];
-        d1 += (vi[1] - vj[1]) * pr->g[1];
-        d2 += (vi[2] - vj[2]) * pr->g[2];
-    }
-    const double *G = c->gw + 3 * i;
-    double div = m * (d0 + d1 + d2) + vi[0] * G[0] + vi[1] * G[1] + vi[2] * G[2] - c->qw[i];
-    return c->rho[i] + dt * div;
+    return f->cy->rho[i] + dt * (div_one(f, v, i) - f->cy->qw[i]);
 }
 
 /* rho*_i from v, and the next iteration's k_i from it (Eq. 21; only compression is
@@ -151,7 +141,7 @@ static void grad_one(const stf_fluid *f, const double *y, double *u, int i)
     for (int a = 0; a < 3; a++) u[3 * i + a] = m * d[a] + yi * c->gw[3 * i + a];
 }
 
-/* (D u)_i. */
+/* (D u)_i = m sum_j (u_i - u_j).grad W_ij + u_i.G_w,i (Eq. 19's divergence). */
 static double div_one(const stf_fluid *f, const double *u, int i)
 {
     const cy_state *c = f->cy;

@@ -35,6 +35,19 @@ static stf_fluid *make(stf_fluid_def *d)
     return f;
 }
 
+/* A container of half sizes (hx, hx, hz) at the origin, at rest. */
+static void add_container(stf_fluid *f, double hx, double hz)
+{
+    stf_collider_def c = stf_default_collider_def();
+    c.shape = STF_SHAPE_CONTAINER;
+    c.half[0] = c.half[1] = hx, c.half[2] = hz;
+    char err[256];
+    int id = stf_fluid_add_collider(f, &c, err, sizeof err);
+    CHECK(id >= 0, "container: %s", err);
+    double rot[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1}, z[3] = {0, 0, 0};
+    stf_fluid_set_collider_state(f, id, z, rot, z, z);
+}
+
 /* A fully periodic block without gravity is an infinite lattice at its rest density: it
  * must stay exactly at rest, and its rest density is the physical density to 1%. */
 static void test_block_at_rest(void)
@@ -84,13 +97,8 @@ static uint64_t falling_block_hash_far(int threads, int far)
     d.cy.viscosity_form = form;
     stf_fluid *f = make(&d);
     if (!f) return 0;
-    stf_collider_def c = stf_default_collider_def();
-    c.shape = STF_SHAPE_CONTAINER;
-    c.half[0] = c.half[1] = 0.1, c.half[2] = 0.2;
-    char err[256];
-    int id = stf_fluid_add_collider(f, &c, err, sizeof err);
-    double rot[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1}, z[3] = {0, 0, 0};
-    stf_fluid_set_collider_state(f, id, z, rot, z, z);
+    add_container(f, 0.1, 0.2);
+    double z[3] = {0, 0, 0};
     stf_fluid_add_block(f, (double[3]){-0.1, -0.1, 0.05}, (double[3]){0.0, 0.1, 0.15}, z);
     /* a few particles 30 m away: the dense neighbour box would be too large, and the shared
        hashed grid (Verlet lists, re-sorts) is used instead */
@@ -446,13 +454,8 @@ static double hydrostatic_error(int solver, double warm)
     d.cy.pressure_solver = solver, d.cy.warm_start = warm;
     stf_fluid *f = make(&d);
     if (!f) return INFINITY;
-    stf_collider_def c = stf_default_collider_def();
-    c.shape = STF_SHAPE_CONTAINER;
-    c.half[0] = c.half[1] = 0.05, c.half[2] = 0.3;
-    char err[256];
-    int id = stf_fluid_add_collider(f, &c, err, sizeof err);
-    double rot[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1}, z0[3] = {0, 0, 0};
-    stf_fluid_set_collider_state(f, id, z0, rot, z0, z0);
+    add_container(f, 0.05, 0.3);
+    double z0[3] = {0, 0, 0};
     enum { LAYERS = 20 };
     stf_fluid_add_block(f, (double[3]){-0.05, -0.05, 0}, (double[3]){0.05, 0.05, 0.01 * LAYERS}, z0);
     int n = stf_fluid_count(f), iters = 0;
