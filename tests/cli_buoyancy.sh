@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # cli_buoyancy.sh - buoyancy from the first step (Clavet fluid, fluid.settle). A sphere of
-# radius 3 and 6 spacings is held still in the middle of a tank of water at rest (5 mm
+# radius 3, 6 and 10 spacings is held still in the middle of a tank of water at rest (5 mm
 # spacing, the tank 8 spacings wider and 10 taller than the sphere); the fluid settles
 # around it for 0.3 s before t = 0 (fluid.settle). The fluid's force on it over the first
 # rows (2 ms) must be Archimedes' rho V g within 5 %, rho the fluid's own density (its mass
@@ -12,7 +12,7 @@
 . "$(dirname "$0")/lib_cli.sh" cli_buoyancy "$@"
 stf=$STF
 export OMP_NUM_THREADS=1 OMP_WAIT_POLICY=passive
-for RS in 3 6; do
+for RS in 3 6 10; do
     /usr/bin/python3 - "$RS" > ball_$RS.yaml <<'PY'
 import sys
 RS = float(sys.argv[1]); s = 0.005; R = RS * s
