@@ -68,6 +68,8 @@ int stf_cy_check_def(const stf_fluid_def *d, char *err, size_t errlen)
         FAIL("viscosity_solver: must be implicit or explicit (got %d)", c->viscosity_solver);
     if (c->pressure_solver != STF_PRESSURE_JACOBI && c->pressure_solver != STF_PRESSURE_CG)
         FAIL("pressure_solver: must be jacobi or cg (got %d)", c->pressure_solver);
+    if (c->wall_pressure != STF_WALL_PRESSURE_OWN && c->wall_pressure != STF_WALL_PRESSURE_MIRROR)
+        FAIL("wall_pressure: must be own or mirror (got %d)", c->wall_pressure);
     if (c->viscosity_form != STF_VISCOSITY_MORRIS && c->viscosity_form != STF_VISCOSITY_CENTRAL)
         FAIL("viscosity_form: must be morris or central (got %d)", c->viscosity_form);
     if (!(c->cg_tolerance > 0 && c->cg_tolerance < 1))
@@ -98,6 +100,7 @@ int stf_cy_create(stf_fluid *f)
     cy_state *c = calloc(1, sizeof *c);
     if (!c) return -1;
     stf_cy_tables(f, c);
+    c->mirror = f->def.cy.wall_pressure == STF_WALL_PRESSURE_MIRROR ? 2.0 : 1.0;
     f->cy = c;
     for (int a = 0; a < 3; a++) {
         f->grid.period[a] = f->def.periodic[a];
@@ -334,13 +337,14 @@ int stf_cy_describe(const stf_fluid *f, char *buf, size_t len)
                     "model: carreau_yasuda\nmu0: %.9g  # m^2/s\nmu_inf: %.9g  # m^2/s\n"
                     "K: %.9g  # s\nalpha: %.9g\nn: %.9g\neta: %.9g\n"
                     "min_pressure_iterations: %d\nmax_pressure_iterations: %d\n"
-                    "pressure_solver: %s\nviscosity_solver: %s\nviscosity_form: %s\ncg_tolerance: %.9g\n"
+                    "pressure_solver: %s\nwall_pressure: %s\nviscosity_solver: %s\nviscosity_form: %s\ncg_tolerance: %.9g\n"
                     "max_cg_iterations: %d\n"
                     "cfl: %.9g\ndt_max: %.9g  # s\nwarm_start: %.9g\nrelaxation: %.9g\n"
                     "rest_density_cy: %.9g  # kg/m^3, kernel sum of the lattice\n",
                     c->mu0, c->mu_inf, c->K, c->alpha, c->n, c->eta, c->min_pressure_iterations,
                     c->max_pressure_iterations,
                     c->pressure_solver == STF_PRESSURE_CG ? "cg" : "jacobi",
+                    c->wall_pressure == STF_WALL_PRESSURE_MIRROR ? "mirror" : "own",
                     c->viscosity_solver == STF_VISCOSITY_EXPLICIT ? "explicit" : "implicit",
                     c->viscosity_form == STF_VISCOSITY_CENTRAL ? "central" : "morris",
                     c->cg_tolerance, c->max_cg_iterations, c->cfl, c->dt_max, c->warm_start,

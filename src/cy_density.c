@@ -59,7 +59,8 @@ void stf_cy_density_one(stf_fluid *f, int i)
 {
     cy_state *c = f->cy;
     double h = f->h, m = f->mass, rho = c->rho[i] + m * kernel_w(0, h);
-    double sum[3] = {c->gw[3 * i], c->gw[3 * i + 1], c->gw[3 * i + 2]}, sq = 0;
+    double sum[3] = {c->mirror * c->gw[3 * i], c->mirror * c->gw[3 * i + 1],
+                     c->mirror * c->gw[3 * i + 2]}, sq = 0;
     const int32_t *nb = c->dense ? c->nbt + (size_t)i * (size_t)c->nbs
                                  : grid_row(&f->grid, i);
     int cnt = c->dense ? c->nbc[i] : f->grid.count[i];

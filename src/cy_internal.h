@@ -31,6 +31,9 @@ typedef struct cy_pair {
 typedef struct cy_state {
     int cap;             /* particles the arrays hold */
     double rho0;         /* rest density, kg/m^3 */
+    double mirror;       /* the walls' weight in the projection: 1 (wall_pressure own), 2
+                            (mirror: the wall's lattice carries the particle's pressure, and
+                            sees its approach as a mirror does; cy_walls.c) */
     double wall_rho[WALL_BINS + 1];  /* wall density by distance, kg/m^3 */
     double wall_grad[WALL_BINS + 1]; /* |sum_b m grad W_ib| by distance, kg/m^4 */
     double *rho, *S, *kappa, *ktot, *rhostar; /* n each */

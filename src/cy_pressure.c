@@ -27,7 +27,7 @@ static double div_one(const stf_fluid *f, const double *u, int i);
 /* rho*_i (Eq. 19) from the velocities v: rho_i + dt (D v - the walls' v_w . m grad W). */
 static double predict_one(const stf_fluid *f, const double *v, int i, double dt)
 {
-    return f->cy->rho[i] + dt * (div_one(f, v, i) - f->cy->qw[i]);
+    return f->cy->rho[i] + dt * (div_one(f, v, i) - f->cy->mirror * f->cy->qw[i]);
 }
 
 /* rho*_i from v, and the next iteration's k_i from it (Eq. 21; only compression is
@@ -57,7 +57,7 @@ static void pressure_dv_one(stf_fluid *f, int i, double dt)
         d[1] += w * pr->g[1];
         d[2] += w * pr->g[2];
     }
-    for (int a = 0; a < 3; a++) f->v[3 * i + a] -= dt * (m * d[a] + ki * c->gw[3 * i + a]);
+    for (int a = 0; a < 3; a++) f->v[3 * i + a] -= dt * (m * d[a] + c->mirror * ki * c->gw[3 * i + a]);
     c->ktot[i] += c->kappa[i];
 }
 
@@ -138,7 +138,7 @@ static void grad_one(const stf_fluid *f, const double *y, double *u, int i)
         d[1] += w * pr->g[1];
         d[2] += w * pr->g[2];
     }
-    for (int a = 0; a < 3; a++) u[3 * i + a] = m * d[a] + yi * c->gw[3 * i + a];
+    for (int a = 0; a < 3; a++) u[3 * i + a] = m * d[a] + c->mirror * yi * c->gw[3 * i + a];
 }
 
 /* (D u)_i = m sum_j (u_i - u_j).grad W_ij + u_i.G_w,i (Eq. 19's divergence). */
@@ -155,7 +155,8 @@ static double div_one(const stf_fluid *f, const double *u, int i)
         d2 += (ui[2] - uj[2]) * pr->g[2];
     }
     const double *G = c->gw + 3 * i;
-    return f->mass * (d0 + d1 + d2) + ui[0] * G[0] + ui[1] * G[1] + ui[2] * G[2];
+    double w = c->mirror;
+    return f->mass * (d0 + d1 + d2) + w * ui[0] * G[0] + w * ui[1] * G[1] + w * ui[2] * G[2];
 }
 
 /* Serial sums: the same result for any thread count. */

@@ -14,7 +14,10 @@
  * projection with the particle's own k_i, in the strain rate with the solid's velocity, and
  * in the viscous force with Morris' mirror velocity (zero relative velocity on the surface:
  * no slip). Every velocity change they cause is an impulse the collider receives back,
- * which is how ODE bodies feel buoyancy and drag. Where two colliders meet, both count
+ * which is how ODE bodies feel buoyancy and drag. With wall_pressure mirror (ours) the wall's
+ * lattice carries the particle's own pressure, as the Clavet model's mirror does, and its part
+ * in the projection counts twice (cy_state.mirror: the push, the density change, S_i and the
+ * reactions below). Where two colliders meet, both count
  * (the corner's lattice twice); a container's own faces count one by one, with the
  * quarter-space behind each edge subtracted once (the triple corner's octant is then
  * missing once: at least 0.87 h from a particle, a small term). */
@@ -295,7 +298,7 @@ void stf_cy_wall_reactions(stf_fluid *f, double dt)
             double G[3] = {0, 0, 0}, rho = 0, lap = 0, M[9], vb[3] = {0, 0, 0};
             c->hit[i] = (char)wall_term(f, col, i, G, &rho, &lap, M, vb);
             if (!c->hit[i]) continue;
-            double ki = c->ktot[i] / c->rho[i];
+            double ki = c->mirror * c->ktot[i] / c->rho[i];
             if (f->def.cy.viscosity_form == STF_VISCOSITY_CENTRAL) {
                 double ww = wall_visc(c, i), du[3];
                 for (int a = 0; a < 3; a++) du[a] = c->r[3 * i + a] - vb[a];

@@ -78,7 +78,7 @@ static const char *cy_field(const char *msg)
         "cy.mu0", "cy.mu_inf", "cy.K", "cy.alpha", "cy.n", "cy.eta",
         "cy.min_pressure_iterations", "cy.max_pressure_iterations", "cy.viscosity_solver",
         "cy.viscosity_form", "cy.cg_tolerance", "cy.max_cg_iterations", "cy.warm_start",
-        "cy.relaxation", "cy.dt_max", "cy.cfl", "cy.pressure_solver", "effects", "periodic", "periodic_origin", NULL};
+        "cy.relaxation", "cy.dt_max", "cy.cfl", "cy.pressure_solver", "cy.wall_pressure", "effects", "periodic", "periodic_origin", NULL};
     size_t n = strcspn(msg, ":");
     for (int i = 0; fields[i]; i++) {
         const char *name = strncmp(fields[i], "cy.", 3) ? fields[i] : fields[i] + 3;

@@ -79,6 +79,14 @@ enum stf_pressure_solver {
                                 the pressure >= 0 in total (it may fall where the fluid expands) */
 };
 
+/* The walls' part in the Carreau-Yasuda projection (cy_walls.c). */
+enum stf_wall_pressure {
+    STF_WALL_PRESSURE_OWN = 0,    /* a wall pushes with the particle's own k_i once (the
+                                     boundary particles of the paper carry no pressure) */
+    STF_WALL_PRESSURE_MIRROR = 1, /* ours: the wall's lattice carries the particle's pressure
+                                     and sees its approach as a mirror: twice the wall term */
+};
+
 enum stf_viscosity_solver {
     STF_VISCOSITY_IMPLICIT = 0, /* backward Euler, conjugate gradients (Algorithm 2) */
     STF_VISCOSITY_EXPLICIT = 1, /* forward Euler (for comparison; limited by dt ~ h^2/nu) */
@@ -120,6 +128,7 @@ typedef struct stf_cy_def {
                               Eq. 21 (0 means 1, the paper's), dimensionless */
     int viscosity_form;    /* enum stf_viscosity_form (default morris) */
     int pressure_solver;   /* enum stf_pressure_solver (default jacobi) */
+    int wall_pressure;     /* enum stf_wall_pressure (default own) */
 } stf_cy_def;
 
 /* What the Carreau-Yasuda solver did in the last step (zeros for the Clavet model). */

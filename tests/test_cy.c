@@ -136,6 +136,7 @@ static uint64_t periodic_flow_hash(int threads, int solver)
     d.cy.warm_start = 0.5, d.cy.relaxation = 0.7, d.cy.cfl = 0.3;
     d.cy.viscosity_solver = solver & 1;
     if (solver & 2) d.cy.pressure_solver = STF_PRESSURE_CG, d.cy.warm_start = 1;
+    if (solver & 4) d.cy.wall_pressure = STF_WALL_PRESSURE_MIRROR;
     d.periodic[0] = 0.14, d.periodic[1] = 0.12;
     d.periodic_origin[0] = -0.07, d.periodic_origin[1] = -0.06;
     stf_fluid *f = make(&d);
@@ -168,14 +169,16 @@ static uint64_t periodic_flow_hash(int threads, int solver)
 
 static void test_threads_periodic(void)
 {
-    /* 0, 1: implicit and explicit viscosity; 2: implicit, pressure_solver cg */
-    for (int solver = 0; solver < 3; solver++) {
+    /* 0, 1: implicit and explicit viscosity; 2: implicit, pressure_solver cg; 3: that with
+       wall_pressure mirror */
+    for (int solver = 0; solver < 4; solver++) {
         int sv = solver == 1 ? STF_VISCOSITY_EXPLICIT : STF_VISCOSITY_IMPLICIT;
-        if (solver == 2) sv |= 2;
+        if (solver >= 2) sv |= 2;
+        if (solver == 3) sv |= 4;
         uint64_t h1 = periodic_flow_hash(1, sv), h2 = periodic_flow_hash(2, sv),
                  h3 = periodic_flow_hash(3, sv);
         CHECK(h1 == h2 && h1 == h3 && h1 != 0, "periodic (%s): 1, 2, 3 threads differ: %llx %llx %llx",
-              solver == 2 ? "pressure cg" : solver ? "explicit" : "implicit",
+              solver == 3 ? "cg, mirror" : solver == 2 ? "pressure cg" : solver ? "explicit" : "implicit",
               (unsigned long long)h1, (unsigned long long)h2, (unsigned long long)h3);
     }
     stf_set_threads(1);
@@ -397,7 +400,7 @@ static void test_scene_keys(void)
                      "  blocks: [{min: [0, 0, 0], max: [0.2, 0.2, 0.2]}]\n"
                      "effects:\n  gravity: {}\n  carreau_yasuda: {mu0: 0.5, mu_inf: 0.01, K: 2, "
                      "alpha: 1.5, n: 0.7, eta: 0.005, viscosity_solver: explicit, "
-                     "viscosity_form: central, pressure_solver: cg, "
+                     "viscosity_form: central, pressure_solver: cg, wall_pressure: mirror, "
                      "cg_tolerance: 1e-6, min_pressure_iterations: 3, max_pressure_iterations: 50, "
                      "max_cg_iterations: 77}\n";
     stf_scene *s = NULL;
@@ -411,7 +414,8 @@ static void test_scene_keys(void)
                   c->max_pressure_iterations == 50 && c->max_cg_iterations == 77 &&
                   c->viscosity_solver == STF_VISCOSITY_EXPLICIT &&
                   c->viscosity_form == STF_VISCOSITY_CENTRAL &&
-                  c->pressure_solver == STF_PRESSURE_CG,
+                  c->pressure_solver == STF_PRESSURE_CG &&
+                  c->wall_pressure == STF_WALL_PRESSURE_MIRROR,
               "keys not read");
         CHECK(s->fluid.jitter == 0, "CY blocks start on the lattice (jitter %g)", s->fluid.jitter);
         stf_scene_free(s);
@@ -428,6 +432,10 @@ static void test_scene_keys(void)
     CHECK(stf_scene_load_string("ok.yaml", ok, &ov4, 1, &s, err, sizeof err) == 2 &&
               strstr(err, "effects.carreau_yasuda.pressure_solver") && strstr(err, "jacobi, cg"),
           "pressure_solver sor: %s", err);
+    stf_override ov5 = {"effects.carreau_yasuda.wall_pressure", "double"};
+    CHECK(stf_scene_load_string("ok.yaml", ok, &ov5, 1, &s, err, sizeof err) == 2 &&
+              strstr(err, "effects.carreau_yasuda.wall_pressure") && strstr(err, "own, mirror"),
+          "wall_pressure double: %s", err);
     stf_override ov2 = {"effects.carreau_yasuda.min_pressure_iterations", "60"};
     CHECK(stf_scene_load_string("ok.yaml", ok, &ov2, 1, &s, err, sizeof err) == 2 &&
               strstr(err, "effects.carreau_yasuda.max_pressure_iterations: must be >= "
@@ -443,15 +451,16 @@ static void test_scene_keys(void)
  * its depth and the mean pressure iterations. The floor layer is left out of the fit: a wall
  * pushes with the particle's own pressure once (cy_walls.c) where a fluid neighbour in its
  * place would add its own, so the layer against it holds more (15% more, both solvers). */
-static double hydrostatic_error(int solver, double warm)
+static double hydrostatic_error(int solver, double warm, int wall, double eta, double *floor_z,
+                                double *floor_v)
 {
     stf_fluid_def d = stf_default_fluid_def();
     d.model = STF_MODEL_CARREAU_YASUDA;
     d.effects = STF_EFFECT_GRAVITY;
     d.spacing = 0.01, d.density = 1000, d.jitter = 0;
     d.cy.mu0 = d.cy.mu_inf = 0.01;
-    d.cy.eta = 1e-3, d.cy.max_pressure_iterations = 2000;
-    d.cy.pressure_solver = solver, d.cy.warm_start = warm;
+    d.cy.eta = eta, d.cy.max_pressure_iterations = 2000;
+    d.cy.pressure_solver = solver, d.cy.warm_start = warm, d.cy.wall_pressure = wall;
     stf_fluid *f = make(&d);
     if (!f) return INFINITY;
     add_container(f, 0.05, 0.3);
@@ -460,6 +469,7 @@ static double hydrostatic_error(int solver, double warm)
     stf_fluid_add_block(f, (double[3]){-0.05, -0.05, 0}, (double[3]){0.05, 0.05, 0.01 * LAYERS}, z0);
     int n = stf_fluid_count(f), iters = 0;
     double *x = malloc((size_t)n * 3 * sizeof *x), *p = malloc((size_t)n * sizeof *p);
+    double *v = malloc((size_t)n * 3 * sizeof *v), fz = 0, fv = 0, fn = 0;
     double sum[LAYERS] = {0}, cnt[LAYERS] = {0}, top = 0, g = 9.81, rho0 = stf_fluid_cy_rest_density(f);
     for (int k = 0; k < 300; k++) {
         CHECK(stf_fluid_step(f, 1e-3) == 0, "step %d: %s", k, stf_fluid_failure(f));
@@ -470,6 +480,13 @@ static double hydrostatic_error(int solver, double warm)
         iters += st.pressure_iterations;
         stf_fluid_get_positions(f, x);
         stf_fluid_get_pressures(f, p);
+        stf_fluid_get_velocities(f, v);
+        for (int i = 0; i < n; i++)
+            if (x[3 * i + 2] < 0.01) {
+                fz += x[3 * i + 2] / 0.01;
+                fv += v[3 * i] * v[3 * i] + v[3 * i + 1] * v[3 * i + 1] + v[3 * i + 2] * v[3 * i + 2];
+                fn += 1;
+            }
         double zt = 0;
         for (int i = 0; i < n; i++) zt = x[3 * i + 2] > zt ? x[3 * i + 2] : zt;
         top += zt / 50;
@@ -487,24 +504,45 @@ static double hydrostatic_error(int solver, double warm)
         sz += zl, sp += pl, szz += zl * zl, szp += zl * pl, k += 1;
     }
     double slope = (k * szp - sz * sp) / (k * szz - sz * sz), gerr = -slope / (rho0 * g) - 1;
-    printf("cy: column at rest, %s (warm_start %g): pressure gradient %.0f Pa/m (rho0 g %.0f), "
-           "%+.1f%%; floor layer %.0f Pa (rho0 g depth %.0f Pa); %.1f pressure iterations a "
-           "step\n", solver == STF_PRESSURE_CG ? "cg" : "jacobi", warm, -slope, rho0 * g,
-           100 * gerr, sum[0] / cnt[0], rho0 * g * (surface - 0.005), iters / 50.0);
+    *floor_z = fn > 0 ? fz / fn : NAN;
+    *floor_v = fn > 0 ? sqrt(fv / fn) : NAN;
+    printf("cy: column at rest, %s (warm_start %g, eta %g), wall_pressure %s: pressure gradient "
+           "%.0f Pa/m (rho0 g %.0f), %+.1f%%; floor layer %.0f Pa (rho0 g depth %.0f Pa) at %.3f "
+           "spacings, rms speed %.2f mm/s; %.1f pressure iterations a step\n",
+           solver == STF_PRESSURE_CG ? "cg" : "jacobi", warm, eta, wall ? "mirror" : "own", -slope,
+           rho0 * g, 100 * gerr, sum[0] / cnt[0], rho0 * g * (surface - 0.005), *floor_z,
+           1e3 * *floor_v, iters / 50.0);
+    free(v);
     free(x);
     free(p);
     stf_fluid_destroy(f);
     return gerr;
 }
 
-/* The fit's 3%: the cubic spline's lattice sum of r (x) grad W is 2% off the identity at
- * h = 2 s (the bulk's pressure gradient is that much off its continuum value), and the layers'
- * pressures are means over 50 steps of a column that is still settling. */
+/* The column with either wall and solver: the pressure gradient within 5% of rho0 g, the cubic
+ * spline's own lattice error at h = 2 s (its lattice sum of r (x) grad W is 2% off the
+ * identity) plus the column's jitter (the same run with the sums in another order moves the
+ * fitted gradient by 1.5-2.5 points, measured). wall_pressure mirror (a wall's lattice carrying
+ * the particle's pressure, cy_walls.c) holds the floor layer where a half-space lattice puts
+ * it, at half a spacing (within 2% of a spacing), and that layer moves less than with the wall
+ * as the paper has it (own), whose floor layer the collision stage puts back at half a spacing
+ * every step against a closer equilibrium (measured 65-70 mm/s rms against 3-9). */
 static void test_hydrostatic(void)
 {
-    double jac = hydrostatic_error(STF_PRESSURE_JACOBI, 0), cg = hydrostatic_error(STF_PRESSURE_CG, 1);
-    CHECK(fabs(jac) < 0.03, "jacobi: the column's pressure gradient is off rho0 g by %+.1f%%", 100 * jac);
-    CHECK(fabs(cg) < 0.03, "cg: the column's pressure gradient is off rho0 g by %+.1f%%", 100 * cg);
+    double fz[4], fv[4];
+    double jac = hydrostatic_error(STF_PRESSURE_JACOBI, 0, STF_WALL_PRESSURE_OWN, 1e-3, fz, fv);
+    double cg = hydrostatic_error(STF_PRESSURE_CG, 1, STF_WALL_PRESSURE_OWN, 1e-3, fz + 1, fv + 1);
+    double mj = hydrostatic_error(STF_PRESSURE_JACOBI, 0, STF_WALL_PRESSURE_MIRROR, 1e-3, fz + 2, fv + 2);
+    double mc = hydrostatic_error(STF_PRESSURE_CG, 1, STF_WALL_PRESSURE_MIRROR, 1e-4, fz + 3, fv + 3);
+    CHECK(fabs(jac) < 0.05, "jacobi: the column's pressure gradient is off rho0 g by %+.1f%%", 100 * jac);
+    CHECK(fabs(cg) < 0.05, "cg: the column's pressure gradient is off rho0 g by %+.1f%%", 100 * cg);
+    CHECK(fabs(mj) < 0.05, "jacobi, mirror: the pressure gradient is off rho0 g by %+.1f%%", 100 * mj);
+    CHECK(fabs(mc) < 0.05, "cg, mirror: the pressure gradient is off rho0 g by %+.1f%%", 100 * mc);
+    for (int k = 2; k < 4; k++)
+        CHECK(fabs(fz[k] - 0.5) < 0.02, "%s, mirror: the floor layer at %.3f spacings, not 0.5",
+              k == 2 ? "jacobi" : "cg", fz[k]);
+    CHECK(fv[2] < fv[0] && fv[3] < fv[1], "the mirror's floor layer moves more than own's: "
+          "%.3g, %.3g against %.3g, %.3g m/s", fv[2], fv[3], fv[0], fv[1]);
 }
 
 int main(void)

@@ -480,6 +480,7 @@ static const struct def_key {
     {"cy.viscosity_solver", "effects.carreau_yasuda.viscosity_solver", NULL},
     {"cy.viscosity_form", "effects.carreau_yasuda.viscosity_form", NULL},
     {"cy.pressure_solver", "effects.carreau_yasuda.pressure_solver", NULL},
+    {"cy.wall_pressure", "effects.carreau_yasuda.wall_pressure", NULL},
     {"cy.cg_tolerance", "effects.carreau_yasuda.cg_tolerance", NULL},
     {"cy.max_cg_iterations", "effects.carreau_yasuda.max_cg_iterations", NULL},
     {"cy.cfl", "effects.carreau_yasuda.cfl", NULL},
@@ -699,6 +700,10 @@ static int parse_carreau_yasuda(loader *L, const mapv *p)
     int psolver;
     if (get_choice(L, p, "pressure_solver", psolvers, &psolver) < 0) return SCENE_BAD;
     if (has(p, "pressure_solver")) c->pressure_solver = psolver ? STF_PRESSURE_CG : STF_PRESSURE_JACOBI;
+    static const char *const wallp[] = {"own", "mirror", NULL};
+    int wp;
+    if (get_choice(L, p, "wall_pressure", wallp, &wp) < 0) return SCENE_BAD;
+    if (has(p, "wall_pressure")) c->wall_pressure = wp ? STF_WALL_PRESSURE_MIRROR : STF_WALL_PRESSURE_OWN;
     int form;
     if (get_choice(L, p, "viscosity_form", forms, &form) < 0) return SCENE_BAD;
     if (has(p, "viscosity_form"))
@@ -752,7 +757,7 @@ static const char *const cy_keys[] = {"mu0", "mu_inf", "K", "alpha", "n", "eta",
                                       "min_pressure_iterations", "max_pressure_iterations",
                                       "viscosity_solver", "cg_tolerance", "max_cg_iterations",
                                       "cfl", "dt_max", "warm_start", "relaxation", "viscosity_form",
-                                      "pressure_solver", NULL};
+                                      "pressure_solver", "wall_pressure", NULL};
 
 static int parse_effects(loader *L, const mapv *top)
 {
