@@ -337,7 +337,8 @@ int stf_cy_describe(const stf_fluid *f, char *buf, size_t len)
                     "model: carreau_yasuda\nmu0: %.9g  # m^2/s\nmu_inf: %.9g  # m^2/s\n"
                     "K: %.9g  # s\nalpha: %.9g\nn: %.9g\neta: %.9g\n"
                     "min_pressure_iterations: %d\nmax_pressure_iterations: %d\n"
-                    "pressure_solver: %s\nwall_pressure: %s\nviscosity_solver: %s\nviscosity_form: %s\ncg_tolerance: %.9g\n"
+                    "pressure_solver: %s\nwall_pressure: %s\nviscosity_solver: %s\n"
+                    "viscosity_form: %s\ncg_tolerance: %.9g\n"
                     "max_cg_iterations: %d\n"
                     "cfl: %.9g\ndt_max: %.9g  # s\nwarm_start: %.9g\nrelaxation: %.9g\n"
                     "rest_density_cy: %.9g  # kg/m^3, kernel sum of the lattice\n",
