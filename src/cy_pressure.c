@@ -22,7 +22,44 @@
 
 #include <math.h>
 
-static double div_one(const stf_fluid *f, const double *u, int i);
+/* u = (G y)_i: the velocity change -dt u of the pressures y = k / rho at particle i (Algorithm
+ * 1's last loop; the conjugate gradients below). */
+static void grad_at(const stf_fluid *f, const double *y, int i, double u[3])
+{
+    const cy_state *c = f->cy;
+    double m = f->mass, yi = y[i], d[3] = {0, 0, 0};
+    const cy_pair *pr = c->pair + c->off[i], *end = c->pair + c->off[i + 1];
+    for (; pr < end; pr++) {
+        double w = yi + y[pr->j];
+        d[0] += w * pr->g[0];
+        d[1] += w * pr->g[1];
+        d[2] += w * pr->g[2];
+    }
+    for (int a = 0; a < 3; a++) u[a] = m * d[a] + c->mirror * yi * c->gw[3 * i + a];
+}
+
+static void grad_one(const stf_fluid *f, const double *y, double *u, int i)
+{
+    grad_at(f, y, i, u + 3 * i);
+}
+
+/* (D u)_i = m sum_j (u_i - u_j).grad W_ij + u_i.G_w,i (Eq. 19's divergence). */
+static double div_one(const stf_fluid *f, const double *u, int i)
+{
+    const cy_state *c = f->cy;
+    double d0 = 0, d1 = 0, d2 = 0;
+    const cy_pair *pr = c->pair + c->off[i], *end = c->pair + c->off[i + 1];
+    const double *ui = u + 3 * i;
+    for (; pr < end; pr++) {
+        const double *uj = u + 3 * pr->j;
+        d0 += (ui[0] - uj[0]) * pr->g[0];
+        d1 += (ui[1] - uj[1]) * pr->g[1];
+        d2 += (ui[2] - uj[2]) * pr->g[2];
+    }
+    const double *G = c->gw + 3 * i;
+    double w = c->mirror;
+    return f->mass * (d0 + d1 + d2) + w * ui[0] * G[0] + w * ui[1] * G[1] + w * ui[2] * G[2];
+}
 
 /* rho*_i (Eq. 19) from the velocities v: rho_i + dt (D v - the walls' v_w . m grad W). */
 static double predict_one(const stf_fluid *f, const double *v, int i, double dt)
@@ -48,16 +85,9 @@ static void predict_kappa_one(const stf_fluid *f, const double *v, int i, double
 static void pressure_dv_one(stf_fluid *f, int i, double dt)
 {
     cy_state *c = f->cy;
-    double m = f->mass, ki = c->kr[i], d[3] = {0, 0, 0};
-    const cy_pair *pr = c->pair + c->off[i], *end = c->pair + c->off[i + 1];
-    const double *kr = c->kr;
-    for (; pr < end; pr++) {
-        double w = ki + kr[pr->j];
-        d[0] += w * pr->g[0];
-        d[1] += w * pr->g[1];
-        d[2] += w * pr->g[2];
-    }
-    for (int a = 0; a < 3; a++) f->v[3 * i + a] -= dt * (m * d[a] + c->mirror * ki * c->gw[3 * i + a]);
+    double u[3];
+    grad_at(f, c->kr, i, u);
+    for (int a = 0; a < 3; a++) f->v[3 * i + a] -= dt * u[a];
     c->ktot[i] += c->kappa[i];
 }
 
@@ -126,45 +156,20 @@ void stf_cy_pressure_project(stf_fluid *f, double dt, double w)
  * expands; this does not stop the particle-scale velocity noise a still column keeps (about
  * 4 mm/s rms at dt = 2 ms with either solver: tests/README.md). */
 
-/* u_i = (G y)_i. */
-static void grad_one(const stf_fluid *f, const double *y, double *u, int i)
-{
-    const cy_state *c = f->cy;
-    double m = f->mass, yi = y[i], d[3] = {0, 0, 0};
-    const cy_pair *pr = c->pair + c->off[i], *end = c->pair + c->off[i + 1];
-    for (; pr < end; pr++) {
-        double w = yi + y[pr->j];
-        d[0] += w * pr->g[0];
-        d[1] += w * pr->g[1];
-        d[2] += w * pr->g[2];
-    }
-    for (int a = 0; a < 3; a++) u[3 * i + a] = m * d[a] + c->mirror * yi * c->gw[3 * i + a];
-}
-
-/* (D u)_i = m sum_j (u_i - u_j).grad W_ij + u_i.G_w,i (Eq. 19's divergence). */
-static double div_one(const stf_fluid *f, const double *u, int i)
-{
-    const cy_state *c = f->cy;
-    double d0 = 0, d1 = 0, d2 = 0;
-    const cy_pair *pr = c->pair + c->off[i], *end = c->pair + c->off[i + 1];
-    const double *ui = u + 3 * i;
-    for (; pr < end; pr++) {
-        const double *uj = u + 3 * pr->j;
-        d0 += (ui[0] - uj[0]) * pr->g[0];
-        d1 += (ui[1] - uj[1]) * pr->g[1];
-        d2 += (ui[2] - uj[2]) * pr->g[2];
-    }
-    const double *G = c->gw + 3 * i;
-    double w = c->mirror;
-    return f->mass * (d0 + d1 + d2) + w * ui[0] * G[0] + w * ui[1] * G[1] + w * ui[2] * G[2];
-}
-
 /* Serial sums: the same result for any thread count. */
 static double dot(const double *a, const double *b, int n)
 {
     double s = 0;
     for (int i = 0; i < n; i++) s += a[i] * b[i];
     return s;
+}
+
+/* The mean density error of the residuals res = (rho* - rho0) / dt^2, a fraction of rho0. */
+static double residual_error(const double *res, int n, double dt, double rho0)
+{
+    double sum = 0;
+    for (int i = 0; i < n; i++) sum += fabs(res[i]);
+    return n > 0 ? sum * dt * dt / n / rho0 : 0;
 }
 
 /* v -= dt G y (the particles' velocity change for the pressures y = k / rho) and
@@ -206,9 +211,7 @@ void stf_cy_pressure_project_cg(stf_fluid *f, double dt, double w)
             z[i] = act[i] ? res[i] / c->S[i] : 0;
             dir[i] = z[i];
         }
-        double sum = 0;
-        for (int i = 0; i < n; i++) sum += fabs(res[i]);
-        err = n > 0 ? sum * dt * dt / n / c->rho0 : 0;
+        err = residual_error(res, n, dt, c->rho0);
         if (err <= eta && (round > 0 || iter >= f->def.cy.min_pressure_iterations)) break;
         double rz = dot(res, z, n);
         while (iter < maxit && rz > 0) {
@@ -219,7 +222,6 @@ void stf_cy_pressure_project_cg(stf_fluid *f, double dt, double w)
             double dAd = dot(dir, Ad, n);
             if (!(dAd > 0)) break;
             double alpha = rz / dAd;
-            sum = 0;
 #pragma omp parallel for schedule(static)
             for (int i = 0; i < n; i++) {
                 for (int a = 0; a < 3; a++) f->v[3 * i + a] -= dt * alpha * u[3 * i + a];
@@ -227,9 +229,8 @@ void stf_cy_pressure_project_cg(stf_fluid *f, double dt, double w)
                 res[i] -= alpha * Ad[i];
                 z[i] = act[i] ? res[i] / c->S[i] : 0;
             }
-            for (int i = 0; i < n; i++) sum += fabs(res[i]);
             iter++;
-            err = n > 0 ? sum * dt * dt / n / c->rho0 : 0;
+            err = residual_error(res, n, dt, c->rho0);
             if (err <= eta && iter >= f->def.cy.min_pressure_iterations) break;
             double rz1 = dot(res, z, n), beta = rz1 / rz;
             rz = rz1;

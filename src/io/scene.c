@@ -679,7 +679,6 @@ static int parse_carreau_yasuda(loader *L, const mapv *p)
     static const char *const solvers[] = {"implicit", "explicit", NULL};
     static const char *const forms[] = {"morris", "central", NULL};
     stf_cy_def *c = &L->s->fluid.cy;
-    int solver;
     if (get_num(L, p, "mu0", R_ANY, &c->mu0) < 0 ||
         get_num(L, p, "mu_inf", R_ANY, &c->mu_inf) < 0 || get_num(L, p, "K", R_ANY, &c->K) < 0 ||
         get_num(L, p, "alpha", R_ANY, &c->alpha) < 0 || get_num(L, p, "n", R_ANY, &c->n) < 0 ||
@@ -693,21 +692,14 @@ static int parse_carreau_yasuda(loader *L, const mapv *p)
         get_count(L, p, "max_pressure_iterations", &c->max_pressure_iterations) < 0 ||
         get_count(L, p, "max_cg_iterations", &c->max_cg_iterations) < 0)
         return SCENE_BAD;
-    if (get_choice(L, p, "viscosity_solver", solvers, &solver) < 0) return SCENE_BAD;
-    if (has(p, "viscosity_solver"))
-        c->viscosity_solver = solver ? STF_VISCOSITY_EXPLICIT : STF_VISCOSITY_IMPLICIT;
+    /* the names in the order of their enums (stf.h), so the index is the value */
     static const char *const psolvers[] = {"jacobi", "cg", NULL};
-    int psolver;
-    if (get_choice(L, p, "pressure_solver", psolvers, &psolver) < 0) return SCENE_BAD;
-    if (has(p, "pressure_solver")) c->pressure_solver = psolver ? STF_PRESSURE_CG : STF_PRESSURE_JACOBI;
-    static const char *const wallp[] = {"own", "mirror", NULL};
-    int wp;
-    if (get_choice(L, p, "wall_pressure", wallp, &wp) < 0) return SCENE_BAD;
-    if (has(p, "wall_pressure")) c->wall_pressure = wp ? STF_WALL_PRESSURE_MIRROR : STF_WALL_PRESSURE_OWN;
-    int form;
-    if (get_choice(L, p, "viscosity_form", forms, &form) < 0) return SCENE_BAD;
-    if (has(p, "viscosity_form"))
-        c->viscosity_form = form ? STF_VISCOSITY_CENTRAL : STF_VISCOSITY_MORRIS;
+    static const char *const walls[] = {"own", "mirror", NULL};
+    if (get_choice(L, p, "viscosity_solver", solvers, &c->viscosity_solver) < 0 ||
+        get_choice(L, p, "pressure_solver", psolvers, &c->pressure_solver) < 0 ||
+        get_choice(L, p, "wall_pressure", walls, &c->wall_pressure) < 0 ||
+        get_choice(L, p, "viscosity_form", forms, &c->viscosity_form) < 0)
+        return SCENE_BAD;
     return 0;
 }
 
