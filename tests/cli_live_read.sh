@@ -9,7 +9,9 @@
 #     every frame, removed at the end: stf_h5_compact) keeps reading its frames, and the
 #     compacted file is complete;
 #   - the XDMF sidecar is there while the run goes and names only frames in the file.
-# A reader's opening fails while the writer writes ("unable to lock file"): it tries again.
+# A reader's opening fails while the writer writes ("unable to lock file"): it tries again;
+# while another reader holds the file the writer writes past its lock, and a second reader's
+# opening may find a frame half-written: it opens again (count_frames).
 #
 # usage: bash cli_live_read.sh STF_BINARY PROJECT_DIR   (run in the build's tests directory)
 . "$(dirname "$0")/lib_cli.sh" cli_live_read "$@"
@@ -36,6 +38,21 @@ def open_retry(path, **kw):
 
 def frames(f):
     return sorted(int(k[5:]) for k in f if k.startswith("Step#"))
+
+def count_frames(path):
+    """the frames a fresh opening of path sees. While another reader holds the file the
+    writer writes without HDF5's lock (h5io.c, open_file), so an opening can land in the
+    middle of a frame's write and find the metadata half-written ("addr overflow"): open
+    again, as a viewer would."""
+    for tries in range(200):
+        f, _ = open_retry(path)
+        try:
+            return len(frames(f))
+        except (OSError, RuntimeError, KeyError):
+            time.sleep(0.02)
+        finally:
+            f.close()
+    raise RuntimeError("%s: no consistent opening in 200 tries" % path)
 
 def check_complete(path, want):
     """the finished file: frames 0..want-1 with finite data, exit_status 0, /metrics"""
@@ -98,7 +115,7 @@ PYTHONPATH=. "$PY" - hold.h5 <<'EOF' || fail "hold.h5: a reader holding the file
 import subprocess, sys, time, lib
 import numpy as np
 path = sys.argv[1]
-count = ("import sys, lib; f, _ = lib.open_retry(sys.argv[1]); print(len(lib.frames(f)))")
+count = "import sys, lib; print(lib.count_frames(sys.argv[1]))"
 def other():  # frames another process sees
     return int(subprocess.check_output([sys.executable, "-c", count, path], text=True))
 f, _ = lib.open_retry(path)

@@ -158,7 +158,9 @@ enum { MDC_REOPEN_BYTES = 2 << 20 }; /* metadata kept in memory before the file 
  * file (a viewer reading a frame does so quickly), then opens the file without locking and
  * writes anyway, so a reader left open (h5py in a notebook) neither stops nor fails the run.
  * Such a reader sees the file as it was when it opened it; one that opens it again sees the
- * new frames. */
+ * new frames. While the writer writes past such a reader nothing locks the file, so another
+ * opening can land in the middle of a frame's write and find its metadata half-written (an
+ * error on reading, "addr overflow"): that reader is to open the file again. */
 enum { LOCK_WAIT_MS = 250,        /* for readers to let go before writing past them */
        LOCK_FORCED_WAIT_S = 600 }; /* the same when HDF5_USE_FILE_LOCKING forces locking */
 
