@@ -116,8 +116,12 @@ import subprocess, sys, time, lib
 import numpy as np
 path = sys.argv[1]
 count = "import sys, lib; print(lib.count_frames(sys.argv[1]))"
-def other():  # frames another process sees
-    return int(subprocess.check_output([sys.executable, "-c", count, path], text=True))
+def other():  # frames another process sees (again if a half-written file crashed it)
+    for attempt in range(5):
+        r = subprocess.run([sys.executable, "-c", count, path], capture_output=True, text=True)
+        if r.returncode == 0:
+            return int(r.stdout)
+    raise RuntimeError("the other reader failed 5 times: %s" % r.stderr[-500:])
 f, _ = lib.open_retry(path)
 mine = lib.frames(f)
 before = other()
