@@ -11,7 +11,7 @@
 #   - the XDMF sidecar is there while the run goes and names only frames in the file.
 # A reader's opening fails while the writer writes ("unable to lock file"): it tries again;
 # while another reader holds the file the writer writes past its lock, and a second reader's
-# opening may find a frame half-written: it opens again (count_frames).
+# opening may find a frame half-written: it opens again (other).
 #
 # usage: bash cli_live_read.sh STF_BINARY PROJECT_DIR   (run in the build's tests directory)
 . "$(dirname "$0")/lib_cli.sh" cli_live_read "$@"
@@ -40,19 +40,10 @@ def frames(f):
     return sorted(int(k[5:]) for k in f if k.startswith("Step#"))
 
 def count_frames(path):
-    """the frames a fresh opening of path sees. While another reader holds the file the
-    writer writes without HDF5's lock (h5io.c, open_file), so an opening can land in the
-    middle of a frame's write and find the metadata half-written ("addr overflow"): open
-    again, as a viewer would."""
-    for tries in range(200):
-        f, _ = open_retry(path)
-        try:
-            return len(frames(f))
-        except (OSError, RuntimeError, KeyError):
-            time.sleep(0.02)
-        finally:
-            f.close()
-    raise RuntimeError("%s: no consistent opening in 200 tries" % path)
+    """the frames a fresh opening of path sees"""
+    f, _ = open_retry(path)
+    with f:
+        return len(frames(f))
 
 def check_complete(path, want):
     """the finished file: frames 0..want-1 with finite data, exit_status 0, /metrics"""
@@ -116,12 +107,14 @@ import subprocess, sys, time, lib
 import numpy as np
 path = sys.argv[1]
 count = "import sys, lib; print(lib.count_frames(sys.argv[1]))"
-def other():  # frames another process sees (again if a half-written file crashed it)
-    for attempt in range(5):
+def other():  # frames another process sees; it opens again if it found a frame
+    # half-written (the writer writes past this reader without HDF5's lock, h5io.c open_file)
+    for attempt in range(20):
         r = subprocess.run([sys.executable, "-c", count, path], capture_output=True, text=True)
         if r.returncode == 0:
             return int(r.stdout)
-    raise RuntimeError("the other reader failed 5 times: %s" % r.stderr[-500:])
+        time.sleep(0.05)
+    raise RuntimeError("the other reader failed 20 times: %s" % r.stderr[-500:])
 f, _ = lib.open_retry(path)
 mine = lib.frames(f)
 before = other()
