@@ -458,6 +458,11 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
     memset(&p, 0, sizeof p);
     frame_buf b = {0};
     double duration = a->duration > 0 ? a->duration : sc->duration;
+    /* caught before the file exists: a signal while the set-up writes it (a sweep stopped
+       just after starting this run) ends the run at its first frame like any other, with a
+       checkpoint and exit_status 130, instead of killing it with a file that says nothing */
+    signal(SIGINT, on_signal);
+    signal(SIGTERM, on_signal);
     int status = start_run(sc, out, resume, duration, &sim, &h, &p, &b);
     if (status != 0) {
         stf_h5_abort(h);
@@ -476,8 +481,6 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
     if (resume && !a->quiet)
         fprintf(stderr, "stf: resuming %s at t = %.4f s (step %ld of %ld)\n", out, sim->time,
                 sim->steps, steps);
-    signal(SIGINT, on_signal);
-    signal(SIGTERM, on_signal);
     double t0 = omp_get_wtime(), last_checkpoint = t0;
     int cy = sc->fluid.model == STF_MODEL_CARREAU_YASUDA;
     solver_sums *u = &p.sums;

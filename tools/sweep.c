@@ -26,6 +26,7 @@
 #include <string.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
+#include <time.h>
 #include <unistd.h>
 
 #ifdef STF_HAVE_MPI
@@ -589,16 +590,21 @@ static int run_local(const sweep_args *a, sweep_plan *p, const int *todo, int nt
             running++;
         }
         if (running == 0) break;
-        int ws;
-        pid_t got = waitpid(-1, &ws, 0);
-        if (got < 0) {
-            if (errno != EINTR) break;
-            /* a signal to the sweep alone (kill PID): pass it on, the runs save what they have */
-            for (int s = 0; s < jobs && stop_sweep && !forwarded; s++)
+        /* a signal to the sweep alone (kill PID): pass it on, the runs save what they have.
+           Polled, not left to waitpid's EINTR: a signal that comes while a run is being
+           started (outside waitpid) would otherwise wait for that run to end on its own */
+        if (stop_sweep && !forwarded) {
+            for (int s = 0; s < jobs; s++)
                 if (pids[s]) kill(pids[s], SIGINT);
-            forwarded = stop_sweep != 0;
+            forwarded = 1;
+        }
+        int ws;
+        pid_t got = waitpid(-1, &ws, WNOHANG);
+        if (got == 0 || (got < 0 && errno == EINTR)) {
+            nanosleep(&(struct timespec){0, 20000000}, NULL); /* 20 ms */
             continue;
         }
+        if (got < 0) break;
         for (int s = 0; s < jobs; s++)
             if (pids[s] == got) {
                 int st = WIFEXITED(ws) ? WEXITSTATUS(ws) : 128 + (WIFSIGNALED(ws) ? WTERMSIG(ws) : 0);
@@ -874,7 +880,7 @@ int cli_sweep(int argc, char **argv)
     }
     if (!a.quiet && size == 1)
         fprintf(stderr, "stf sweep: %d runs, %d to do (%d already done)\n", p.nruns, ntodo, p.nruns - ntodo);
-    struct sigaction sa; /* no SA_RESTART: a signal wakes waitpid() */
+    struct sigaction sa;
     memset(&sa, 0, sizeof sa);
     sa.sa_handler = on_signal;
     sigemptyset(&sa.sa_mask);
