@@ -88,6 +88,7 @@ for i in 1 2 3 4 5; do
     rm -f early.h5
     "$stf" run "$scene" -o early.h5 --duration 5 --quiet --threads 1 2>early.txt &
     pid=$!
+    # a spin, not lib_cli.sh's grown: its 50 ms polls would let the set-up end first
     while kill -0 $pid 2>/dev/null && [ ! -s early.h5 ]; do :; done
     kill -INT $pid 2>/dev/null
     wait $pid
