@@ -210,7 +210,7 @@ static int cy_substep(stf_fluid *f, double dt)
     if (stf_fluid_check(f, "carreau_yasuda pressure projection")) return -1;
     t0 = omp_get_wtime();
     stf_cy_viscosity_solve(f, dt);
-    stf_cy_wall_reactions(f, dt);
+    stf_cy_wall_reactions(f, dt, 1);
     f->stage_seconds[STAGE_VISCOSITY] += omp_get_wtime() - t0;
     if (stf_fluid_check(f, f->def.cy.viscosity_solver == STF_VISCOSITY_EXPLICIT
                            ? "carreau_yasuda viscosity (explicit)"
@@ -232,6 +232,60 @@ oom:
     snprintf(f->failure, sizeof f->failure, "step %ld (t = %.6g s): out of memory", f->steps + 1,
              f->time);
     return -1;
+}
+
+/* The Clavet model's pressure stage as a projection (ours; cy.h). The Clavet pipeline has
+ * predicted x = xprev + dt v and moved it by the springs; the projection wants the density at
+ * the step's start and the velocity that leads to the prediction, so the positions go back to
+ * xprev with v = (x - xprev) / dt, Algorithm 1 corrects v (from the last step's pressure
+ * times warm_start, or zero), and the positions follow v again. The walls' impulses go to the
+ * colliders. What follows in the Clavet step (collisions, boundary stick) acts on the
+ * projected positions. */
+int stf_cy_pressure_stage(stf_fluid *f, double dt)
+{
+    cy_state *c = f->cy;
+    int n = f->n;
+    if (reserve(f, n) != 0) return -1;
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < 3 * n; i++) {
+        f->v[i] = (f->x[i] - f->xprev[i]) / dt;
+        f->x[i] = f->xprev[i];
+    }
+    /* the shared grid was built at xprev this step: its lists serve when the dense grid
+       does not fit */
+    int dense = stf_cy_neighbours(f);
+    if (dense < 0) return -1;
+    c->dense = dense;
+    if (stf_cy_pair_offsets(f) != 0) return -1;
+    double w = c->warm_n == n ? f->def.cy.warm_start : 0;
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++) {
+        stf_cy_walls_one(f, i);
+        stf_cy_density_one(f, i);
+        c->kappa[i] = w * c->ktot[i];
+        c->kr[i] = c->kappa[i] * c->irho[i];
+        c->ktot[i] = 0;
+    }
+    if (f->def.cy.pressure_solver == STF_PRESSURE_CG) stf_cy_pressure_project_cg(f, dt, w);
+    else stf_cy_pressure_project(f, dt, w);
+    stf_cy_wall_reactions(f, dt, 0);
+    c->stats.substeps = 1;
+    c->stats.dt_min = c->stats.dt_max = dt;
+    c->stats.pressure_iterations_total = c->stats.pressure_iterations_max =
+        c->stats.pressure_iterations;
+    c->stats.density_error_sum = c->stats.density_error_max = c->stats.density_error;
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < 3 * n; i++) f->x[i] = f->xprev[i] + dt * f->v[i];
+    return 0;
+}
+
+void stf_cy_follow_order(stf_fluid *f, const int32_t *perm)
+{
+    cy_state *c = f->cy;
+    if (!c || c->warm_n != f->n) return;
+    for (int i = 0; i < f->n; i++) c->kappa[i] = c->ktot[perm[i]];
+    memcpy(c->ktot, c->kappa, (size_t)f->n * sizeof *c->ktot);
+
 }
 
 /* One coupled step of length dt: a single substep, or with cfl > 0 substeps of equal length

@@ -15,6 +15,13 @@ int stf_cy_create(stf_fluid *f);
 void stf_cy_free(stf_fluid *f);
 /* One step of Algorithm 2 (with Algorithm 1 inside). Returns 0, or -1 with f->failure. */
 int stf_cy_step(stf_fluid *f, double dt);
+/* The Clavet model's pressure stage with def.pressure_mode projection (ours): the velocities
+ * (x - xprev) / dt that gravity, viscosity and the springs predicted are projected at the
+ * step's start positions xprev with the second paper's Algorithm 1 (solver, tolerance and
+ * walls of def.cy), and the positions become xprev + dt v. Returns 0, or -1 out of memory. */
+int stf_cy_pressure_stage(stf_fluid *f, double dt);
+/* The warm-start pressures follow a reordering of the particles (perm: new index -> old). */
+void stf_cy_follow_order(stf_fluid *f, const int32_t *perm);
 /* Appends the model's effective parameters as YAML lines. Returns the length written. */
 int stf_cy_describe(const stf_fluid *f, char *buf, size_t len);
 /* Checkpoints: the warm-start pressures (state.h). 0, or -1 (with a message on load). */

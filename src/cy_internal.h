@@ -153,7 +153,7 @@ int stf_cy_pair_offsets(stf_fluid *f);
  * the walls' impulses of the substep given back to the colliders. */
 void stf_cy_tables(stf_fluid *f, cy_state *c);
 void stf_cy_walls_one(stf_fluid *f, int i);
-void stf_cy_wall_reactions(stf_fluid *f, double dt);
+void stf_cy_wall_reactions(stf_fluid *f, double dt, int viscous);
 
 /* cy_density.c: particle i's density (c->rho, added to the walls' part stf_cy_walls_one left
  * there), 1 / rho, S_i, and its pairs' gradients and viscous weights (c->pair, c->lap). */

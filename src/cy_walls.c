@@ -285,9 +285,11 @@ void stf_cy_walls_one(stf_fluid *f, int i)
 }
 
 /* The impulses the walls gave the particles during the step go back to the colliders:
- * pressure -dt (sum k_i / rho_i) G and viscous dt (the wall part of viscous_one), the latter
- * with the velocity u the viscous step evaluated (c->r, viscosity_solve). */
-void stf_cy_wall_reactions(stf_fluid *f, double dt)
+ * pressure -dt (sum k_i / rho_i) G and, with viscous, viscous dt (the wall part of
+ * viscous_one), the latter with the velocity u the viscous step evaluated (c->r,
+ * viscosity_solve). The Clavet model's projection (stf_cy_pressure_stage) has no viscous
+ * part here: its viscosity is Clavet's, between particles. */
+void stf_cy_wall_reactions(stf_fluid *f, double dt, int viscous)
 {
     cy_state *c = f->cy;
     int n = f->n;
@@ -299,6 +301,10 @@ void stf_cy_wall_reactions(stf_fluid *f, double dt)
             c->hit[i] = (char)wall_term(f, col, i, G, &rho, &lap, M, vb);
             if (!c->hit[i]) continue;
             double ki = c->mirror * c->ktot[i] / c->rho[i];
+            if (!viscous) {
+                for (int a = 0; a < 3; a++) c->dv[3 * i + a] = -f->mass * dt * ki * G[a];
+                continue;
+            }
             if (f->def.cy.viscosity_form == STF_VISCOSITY_CENTRAL) {
                 double ww = wall_visc(c, i), du[3];
                 for (int a = 0; a < 3; a++) du[a] = c->r[3 * i + a] - vb[a];

@@ -142,7 +142,40 @@ int stf_fluid_check_def(const stf_fluid_def *d, char *err, size_t errlen, const 
     if (!(d->sigma >= 0 && isfinite(d->sigma)))
         BAD("sigma", "sigma: must be >= 0 (got %g)", d->sigma);
     if (!(d->beta >= 0 && isfinite(d->beta))) BAD("beta", "beta: must be >= 0 (got %g)", d->beta);
-    if ((d->effects & STF_EFFECT_PRESSURE) && !(d->k > 0 && isfinite(d->k)))
+    if (d->pressure_mode != STF_PRESSURE_RELAX && d->pressure_mode != STF_PRESSURE_PROJECTION)
+        BAD("pressure_mode", "mode: must be relax or projection (got %d)", d->pressure_mode);
+    if (d->pressure_mode == STF_PRESSURE_PROJECTION) {
+        const stf_cy_def *c = &d->cy;
+        if (d->model != STF_MODEL_CLAVET_STF)
+            BAD("pressure_mode", "mode: projection is the clavet_stf model's choice (the "
+                                 "carreau_yasuda model always projects)");
+        if (!(c->eta > 0 && c->eta < 1)) BAD("pressure.eta", "eta: must be in (0,1) (got %g)", c->eta);
+        if (!(c->min_pressure_iterations >= 1 && c->min_pressure_iterations <= 10000))
+            BAD("pressure.min_iterations", "min_iterations: must be in [1, 10000] (got %d)",
+                c->min_pressure_iterations);
+        if (!(c->max_pressure_iterations >= c->min_pressure_iterations &&
+              c->max_pressure_iterations <= 10000))
+            BAD("pressure.max_iterations",
+                "max_iterations: must be in [min_iterations, 10000] (got %d)",
+                c->max_pressure_iterations);
+        if (c->pressure_solver != STF_PRESSURE_JACOBI && c->pressure_solver != STF_PRESSURE_CG)
+            BAD("pressure.solver", "solver: must be jacobi or cg (got %d)", c->pressure_solver);
+        if (c->wall_pressure != STF_WALL_PRESSURE_OWN && c->wall_pressure != STF_WALL_PRESSURE_MIRROR)
+            BAD("pressure.wall_pressure", "wall_pressure: must be own or mirror (got %d)",
+                c->wall_pressure);
+        if (!(c->cg_tolerance > 0 && c->cg_tolerance < 1))
+            BAD("pressure.cg_tolerance", "cg_tolerance: must be in (0,1) (got %g)", c->cg_tolerance);
+        if (!(c->max_cg_iterations >= 1 && c->max_cg_iterations <= 100000))
+            BAD("pressure.max_cg_iterations", "max_cg_iterations: must be in [1, 100000] (got %d)",
+                c->max_cg_iterations);
+        if (!(c->warm_start >= 0 && c->warm_start <= 1))
+            BAD("pressure.warm_start", "warm_start: must be in [0,1] (got %g)", c->warm_start);
+        if (!(c->relaxation >= 0 && c->relaxation <= 1))
+            BAD("pressure.relaxation", "relaxation: must be in (0,1], or 0 for 1 (got %g)",
+                c->relaxation);
+    }
+    if ((d->effects & STF_EFFECT_PRESSURE) && d->pressure_mode == STF_PRESSURE_RELAX &&
+        !(d->k > 0 && isfinite(d->k)))
         BAD("k", "k: must be > 0 (got %g)", d->k);
     if (!(d->k_near >= 0 && isfinite(d->k_near)))
         BAD("k_near", "k_near: must be >= 0 (got %g)", d->k_near);
@@ -260,7 +293,7 @@ int stf_fluid_create(const stf_fluid_def *def, stf_fluid **out, char *err, size_
         free(f);
         FAIL("out of memory");
     }
-    if (def->model == STF_MODEL_CARREAU_YASUDA && stf_cy_create(f) != 0) {
+    if ((def->model == STF_MODEL_CARREAU_YASUDA || projects(f)) && stf_cy_create(f) != 0) {
         free(f);
         FAIL("out of memory");
     }
@@ -586,6 +619,7 @@ void stf_fluid_smoothed_velocity(const stf_fluid *f, double *out)
 static int reorder_by_cell(stf_fluid *f)
 {
     /* The grid's bucket order keeps each cell's particles together in memory. */
+    stf_cy_follow_order(f, f->grid.order); /* the projection's warm start (none: no-op) */
     return stf_fluid_permute(f, f->grid.order);
 }
 
@@ -615,7 +649,7 @@ int stf_fluid_step(stf_fluid *f, double dt)
         memset(f->colliders[k].moment, 0, sizeof f->colliders[k].moment);
         memset(f->colliders[k].shift, 0, sizeof f->colliders[k].shift);
     }
-    if (f->cy) return stf_cy_step(f, dt);
+    if (f->def.model == STF_MODEL_CARREAU_YASUDA) return stf_cy_step(f, dt);
     if (has(f, STF_EFFECT_HISTORY) && f->hist.w == NULL && start_history(f, dt) != 0) goto oom;
     TIMED(STAGE_GRID, {
         /* Particles are re-sorted by cell (memory locality) when the neighbour candidates
@@ -657,9 +691,11 @@ int stf_fluid_step(stf_fluid *f, double dt)
         if (stf_fluid_check(f, has(f, STF_EFFECT_HISTORY) ? "history springs" : "springs")) return -1;
     }
     if (has(f, STF_EFFECT_PRESSURE)) {
-        TIMED(STAGE_PRESSURE, stf_pressure_relax(f, dt));
-        if (stf_fluid_check(f, "pressure")) return -1;
-
+        int rc = 0;
+        if (projects(f)) TIMED(STAGE_PRESSURE, rc = stf_cy_pressure_stage(f, dt));
+        else TIMED(STAGE_PRESSURE, stf_pressure_relax(f, dt));
+        if (rc != 0) goto oom;
+        if (stf_fluid_check(f, projects(f) ? "pressure (projection)" : "pressure")) return -1;
     }
     TIMED(STAGE_COLLIDE, stf_collide_all(f, dt));
 #pragma omp parallel for schedule(static)
@@ -787,7 +823,7 @@ double stf_fluid_effect_seconds(const stf_fluid *f, unsigned effect)
 int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
 {
     const stf_fluid_def *d = &f->def;
-    if (f->cy) {
+    if (d->model == STF_MODEL_CARREAU_YASUDA) {
         int k = snprintf(buf, len,
                          "effects: [%s]\nspacing: %.9g  # m\nh: %.9g  # m\ndensity: %.9g  # kg/m^3\n"
                          "particle_mass: %.9g  # kg\njitter: %.9g  # spacings\n"
@@ -830,6 +866,16 @@ int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
         d->history_velocity == STF_HISTORY_SMOOTHED ? "smoothed" : "particle",
         stf_fluid_history_steps(f), d->memory,
         d->k_hist, d->reference_spacing, d->k_onset, d->stick);
+    if (projects(f) && w >= 0 && (size_t)w < len)
+        w += snprintf(buf + w, len - (size_t)w,
+                      "pressure_mode: projection  # k, k_near, rest_density unused\n"
+                      "pressure_eta: %.9g\npressure_solver: %s\npressure_wall_pressure: %s\n"
+                      "pressure_iterations: [%d, %d]\npressure_warm_start: %.9g\n"
+                      "projection_rest_density: %.9g  # kg/m^3, the cubic spline's lattice sum\n",
+                      d->cy.eta, d->cy.pressure_solver == STF_PRESSURE_CG ? "cg" : "jacobi",
+                      d->cy.wall_pressure == STF_WALL_PRESSURE_MIRROR ? "mirror" : "own",
+                      d->cy.min_pressure_iterations, d->cy.max_pressure_iterations,
+                      d->cy.warm_start, stf_fluid_cy_rest_density(f));
     if (d->history_mode == STF_HISTORY_SOE && w >= 0 && (size_t)w < len)
         w += snprintf(buf + w, len - (size_t)w, "history_terms: %d  # exponentials\n", d->terms);
     return w;

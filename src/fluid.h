@@ -88,6 +88,13 @@ int stf_fluid_permute(stf_fluid *f, const int32_t *perm);
 
 static inline int has(const stf_fluid *f, unsigned effect) { return (f->def.effects & effect) != 0; }
 
+/* 1 when the Clavet model's pressure stage is the projection (stf_cy_pressure_stage). */
+static inline int projects(const stf_fluid *f)
+{
+    return f->def.model == STF_MODEL_CLAVET_STF && has(f, STF_EFFECT_PRESSURE) &&
+           f->def.pressure_mode == STF_PRESSURE_PROJECTION;
+}
+
 /* The hot neighbour loops get an AVX2 clone on x86-64 with GCC, chosen at load time. Same
  * results as the plain version: in ISO C mode GCC contracts no multiply-add into an FMA, and
  * the loops add up in the same order. */

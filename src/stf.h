@@ -72,6 +72,17 @@ enum stf_model {
     STF_MODEL_CARREAU_YASUDA = 1, /* Carreau-Yasuda SPH with pressure projection (second paper) */
 };
 
+/* The Clavet model's pressure stage (stf_fluid_def.pressure_mode, scene key
+ * effects.pressure.mode). */
+enum stf_pressure_mode {
+    STF_PRESSURE_RELAX = 0,      /* Clavet's double density relaxation (Alg. 2), one Jacobi pass
+                                    with stiffnesses k and k_near: the paper's */
+    STF_PRESSURE_PROJECTION = 1, /* ours: the second paper's pressure projection (Algorithm 1,
+                                    with the solver, tolerance and walls of def.cy) on the
+                                    velocities the other effects predict: the fluid held at its
+                                    rest density to eta (src/cy.c, stf_cy_pressure_stage) */
+};
+
 /* The Carreau-Yasuda model's pressure projection (cy_pressure.c). */
 enum stf_pressure_solver {
     STF_PRESSURE_JACOBI = 0, /* Algorithm 1: Jacobi with Eq. 21's k_i, each iteration's k_i >= 0 */
@@ -189,6 +200,10 @@ typedef struct stf_fluid_def {
     int tension;           /* 1: Clavet's pressure as written, negative below rest density
                               (cohesion, surface tension); 0: pressure and near-pressure only
                               push, both measured from the rest lattice (no tension) */
+    int pressure_mode;     /* enum stf_pressure_mode (default relax). projection: k, k_near,
+                              rest_density and tension are not used; cy.eta, cy.pressure_solver,
+                              cy.wall_pressure, cy.min/max_pressure_iterations, cy.max_cg_iterations
+                              and cy.cg_tolerance are */
     /* springs (Clavet Alg. 3-4) */
     double k_min;          /* spring stiffness, 1/s^2 (>= 0) */
     double yield_ratio;    /* tolerated deformation / rest length, dimensionless (>= 0) */

@@ -132,6 +132,169 @@ static void test_momentum(void)
     stf_fluid_destroy(f);
 }
 
+/* ----------------------------------------------------------- projection pressure */
+
+/* The mean number density of a column's bulk over the lattice's (1/s^3), minus 1: each
+ * particle at least rc = 3 spacings from the walls, the floor and the surface (its highest
+ * particle) counts its neighbours within rc with the smooth weight (1 - d^2/rc^2)^2, divided by
+ * that weight's integral; the estimator of the run metrics' density_error (src/io/metrics.c),
+ * independent of either pressure's kernel. */
+static double bulk_density_error(const stf_fluid *f, double half, double s)
+{
+    int n = stf_fluid_count(f);
+    double *x = malloc((size_t)n * 3 * sizeof *x), top = -INFINITY, rc = 3 * s, sum = 0;
+    stf_fluid_get_positions(f, x);
+    for (int i = 0; i < n; i++) top = x[3 * i + 2] > top ? x[3 * i + 2] : top;
+    int m = 0;
+    for (int i = 0; i < n; i++) {
+        const double *p = x + 3 * i;
+        if (fabs(p[0]) > half - rc || fabs(p[1]) > half - rc || p[2] < rc || p[2] > top - rc)
+            continue;
+        double cnt = 0;
+        for (int j = 0; j < n; j++) {
+            double d2 = 0;
+            for (int a = 0; a < 3; a++) d2 += (x[3 * j + a] - p[a]) * (x[3 * j + a] - p[a]);
+            double u = 1 - d2 / (rc * rc);
+            cnt += d2 < rc * rc ? u * u : 0.0;
+        }
+        sum += cnt * s * s * s / (32.0 * 3.14159265358979323846 / 105.0 * rc * rc * rc);
+        m++;
+    }
+    free(x);
+    return m > 0 ? sum / m - 1 : NAN;
+}
+
+/* A column of the cornstarch liquid (pressure and viscosity at the material's values) left to
+ * rest under gravity for 1 s from the lattice: its bulk's density error (the mean of 10
+ * samples over the last 0.1 s) and its rms speed at the end. */
+static double column_density(int mode, double *rms)
+{
+    stf_fluid_def d = stf_default_fluid_def();
+    d.effects = STF_EFFECT_GRAVITY | STF_EFFECT_VISCOSITY | STF_EFFECT_PRESSURE;
+    d.spacing = 0.02, d.density = 1290, d.jitter = 0;
+    d.material_spacing = 0.02, d.sigma = 10, d.k = 4000, d.k_near = 800; /* the material's */
+    d.pressure_mode = mode;
+    d.cy.eta = 1e-3, d.cy.pressure_solver = STF_PRESSURE_CG;
+    d.cy.wall_pressure = STF_WALL_PRESSURE_MIRROR, d.cy.warm_start = 1;
+    stf_fluid *f = make_fluid(&d);
+    if (!f) return NAN;
+    add_container(f, 0.1, 0.1, 0.4, 0.2);
+    stf_fluid_add_block(f, (double[3]){-0.1, -0.1, 0}, (double[3]){0.1, 0.1, 0.32},
+                        (double[3]){0, 0, 0});
+    double e = 0;
+    run(f, 900, 1e-3);
+    for (int k = 0; k < 10; k++) {
+        run(f, 10, 1e-3);
+        e += bulk_density_error(f, 0.1, d.spacing) / 10;
+    }
+    int n = stf_fluid_count(f);
+    double *v = malloc((size_t)n * 3 * sizeof *v), v2 = 0;
+    stf_fluid_get_velocities(f, v);
+    for (int i = 0; i < 3 * n; i++) v2 += v[i] * v[i];
+    *rms = sqrt(v2 / n);
+    free(v);
+    stf_fluid_destroy(f);
+    return e;
+}
+
+static void test_projection(void)
+{
+    /* 1. incompressible: the column's bulk within 1% of the material's density; the
+       relaxation's finite stiffness compresses it more */
+    double rms_relax, rms_proj;
+    double e_relax = column_density(STF_PRESSURE_RELAX, &rms_relax);
+    double e_proj = column_density(STF_PRESSURE_PROJECTION, &rms_proj);
+    CHECK(fabs(e_proj) <= 0.01, "projection: the column's bulk density is off by %+.2f%%",
+          100 * e_proj);
+    CHECK(fabs(e_relax) > 2 * fabs(e_proj), "relaxation %+.2f%% against projection %+.2f%%: the "
+          "projection should hold the density better", 100 * e_relax, 100 * e_proj);
+    printf("projection: a 0.32 m column at rest after 1 s, bulk density %+.2f%% (rms speed %.1f "
+           "mm/s); Clavet's relaxation %+.2f%% (rms %.1f mm/s)\n",
+           100 * e_proj, 1000 * rms_proj, 100 * e_relax, 1000 * rms_relax);
+
+    /* 2. momentum: the projection's pair terms are antisymmetric, and what the walls give the
+       particles goes back to the colliders: fluid plus colliders keep their momentum */
+    stf_fluid_def d = stf_default_fluid_def();
+    d.effects = STF_EFFECT_VISCOSITY | STF_EFFECT_PRESSURE | STF_EFFECT_SPRINGS |
+                STF_EFFECT_HISTORY | STF_EFFECT_BOUNDARY_STICK;
+    d.pressure_mode = STF_PRESSURE_PROJECTION;
+    d.cy.eta = 1e-3, d.cy.pressure_solver = STF_PRESSURE_CG;
+    d.cy.wall_pressure = STF_WALL_PRESSURE_MIRROR;
+    stf_fluid *f = make_fluid(&d);
+    if (!f) return;
+    stf_collider_def sph = stf_default_collider_def();
+    sph.shape = STF_SHAPE_SPHERE, sph.radius = 0.025, sph.friction = 0, sph.stick = 0;
+    int id = stf_fluid_add_collider(f, &sph, err, sizeof err);
+    CHECK(id >= 0, "sphere: %s", err);
+    if (id < 0) return;
+    static const double eye[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    stf_fluid_set_collider_state(f, id, (double[3]){0.04, 0.04, 0.04}, eye, (double[3]){0, 0, 0},
+                                 (double[3]){0, 0, 0});
+    const double s = d.spacing;
+    unsigned long long seed = rng_state;
+    for (int c = 0; c < 9; c++)
+        for (int b = 0; b < 9; b++)
+            for (int a = 0; a < 9; a++) {
+                double x[3] = {a * s, b * s, c * s};
+                double v[3] = {0.2 + 0.3 * urand(), -0.1 + 0.3 * urand(), 0.05 + 0.3 * urand()};
+                stf_fluid_add_particle(f, x, v);
+            }
+    stf_fluid_remove_inside(f, id);
+    int n = stf_fluid_count(f);
+    double m = stf_fluid_particle_mass(f), P0[3], A0, P[3], A, J[3] = {0, 0, 0};
+    double *v = malloc((size_t)n * 3 * sizeof *v);
+    stf_fluid_get_velocities(f, v);
+    momentum(v, n, m, P0, &A0);
+    double wall = 0;
+    for (int k = 0; k < 100; k++) {
+        if (run(f, 1, 1e-3) != 0) break;
+        double imp[3], mom[3];
+        stf_fluid_collider_impulse(f, id, imp, mom);
+        for (int a = 0; a < 3; a++) J[a] += imp[a];
+        wall += sqrt(imp[0] * imp[0] + imp[1] * imp[1] + imp[2] * imp[2]);
+    }
+    stf_fluid_get_velocities(f, v);
+    momentum(v, n, m, P, &A);
+    for (int a = 0; a < 3; a++)
+        CHECK(fabs(P[a] + J[a] - P0[a]) <= 1e-10 * A0,
+              "fluid + sphere momentum[%d]: %.17g -> %.17g (sum m|v| %.6g)", a, P0[a], P[a] + J[a],
+              A0);
+    CHECK(wall > 1e-3 * A0, "the sphere took %.3g N s in all: the walls did little", wall);
+    stf_solver_stats st;
+    stf_fluid_solver_stats(f, &st);
+    CHECK(st.pressure_iterations >= 1, "projection: %d iterations", st.pressure_iterations);
+    printf("projection momentum: %d particles and a sphere, 100 steps, |dP| %.3g of sum m|v| %.4g; "
+           "the sphere took %.3g N s\n", n,
+           fabs(P[0] + J[0] - P0[0]) + fabs(P[1] + J[1] - P0[1]) + fabs(P[2] + J[2] - P0[2]), A0,
+           wall);
+    free(v);
+    /* 3. the same run with 2 threads is bit-identical (the solver's sums are serial, every
+       particle's terms gathered in list order) */
+    uint64_t h1 = stf_fluid_hash(f);
+    stf_fluid_destroy(f);
+    stf_set_threads(2);
+    stf_fluid *g = make_fluid(&d);
+    if (g) {
+        stf_fluid_add_collider(g, &sph, err, sizeof err);
+        stf_fluid_set_collider_state(g, id, (double[3]){0.04, 0.04, 0.04}, eye,
+                                     (double[3]){0, 0, 0}, (double[3]){0, 0, 0});
+        rng_state = seed;
+        for (int c = 0; c < 9; c++)
+            for (int b = 0; b < 9; b++)
+                for (int a = 0; a < 9; a++) {
+                    double x[3] = {a * s, b * s, c * s};
+                    double v1[3] = {0.2 + 0.3 * urand(), -0.1 + 0.3 * urand(), 0.05 + 0.3 * urand()};
+                    stf_fluid_add_particle(g, x, v1);
+                }
+        stf_fluid_remove_inside(g, id);
+        run(g, 100, 1e-3);
+        CHECK(stf_fluid_hash(g) == h1, "projection: 2 threads %016llx against 1 thread %016llx",
+              (unsigned long long)stf_fluid_hash(g), (unsigned long long)h1);
+        stf_fluid_destroy(g);
+    }
+    stf_set_threads(1);
+}
+
 /* -------------------------------------------------------------- spring search */
 
 /* The momentum test's sheared, jittered lattice: springs form and break all the time. */
@@ -631,6 +794,7 @@ int main(int argc, char **argv)
     test_check_def();
     double t0 = omp_get_wtime();
     test_momentum();
+    test_projection();
     test_spring_search();
     double t1 = omp_get_wtime();
     test_containment();

@@ -283,6 +283,20 @@ static void test_errors(void)
                  "t.yaml:9:21: effects.history.memory: must be in [0.5 dt", NULL);
     EXPECT_ERROR(MIN_HEAD "effects:\n  history: {}\n",
                  "t.yaml:8:3: effects.history: needs effects.springs", NULL);
+    /* the pressure's two modes: each one's keys are refused with the other, ranges named */
+    EXPECT_ERROR(MIN_HEAD "effects:\n  pressure: {mode: projection, k: 100}\n",
+                 "t.yaml:8:32: effects.pressure.k: a key of mode relax", NULL);
+    EXPECT_ERROR(MIN_HEAD "effects:\n  pressure: {k: 100, eta: 0.01}\n",
+                 "t.yaml:8:22: effects.pressure.eta: a key of mode: projection", NULL);
+    EXPECT_ERROR(MIN_HEAD "effects:\n  pressure: {mode: projection, eta: 2}\n",
+                 "t.yaml:8:37: effects.pressure.eta: must be in (0,1)", NULL);
+    EXPECT_ERROR(MIN_HEAD "effects:\n  pressure: {mode: projection, solver: lu}\n",
+                 "effects.pressure.solver: expected one of: jacobi, cg", NULL);
+    EXPECT_ERROR(MIN_HEAD "effects:\n  pressure: {mode: projection, min_iterations: 5, "
+                 "max_iterations: 4}\n", "effects.pressure.max_iterations: must be in "
+                 "[min_iterations, 10000]", NULL);
+    EXPECT_ERROR(MIN_HEAD "effects:\n  pressure: {mode: implicit}\n",
+                 "t.yaml:8:20: effects.pressure.mode: expected one of: relax, projection", NULL);
     EXPECT_ERROR(MIN_HEAD "effects: {}\ngravity: [0, 0, 1]\n", "t.yaml:8:1: gravity: unknown key",
                  NULL);
     EXPECT_ERROR(MIN_HEAD "effects: {gravity: {g: [0, 1]}}\n",

@@ -453,6 +453,17 @@ static const struct def_key {
     {"k", "effects.pressure.k", NULL},
     {"k_near", "effects.pressure.k_near", NULL},
     {"rest_density", "effects.pressure.rest_density", NULL},
+    {"pressure_mode", "effects.pressure.mode", NULL},
+    {"pressure.eta", "effects.pressure.eta", "effects.pressure.mode"},
+    {"pressure.min_iterations", "effects.pressure.min_iterations", "effects.pressure.mode"},
+    {"pressure.max_iterations", "effects.pressure.max_iterations",
+     "effects.pressure.min_iterations"},
+    {"pressure.solver", "effects.pressure.solver", "effects.pressure.mode"},
+    {"pressure.wall_pressure", "effects.pressure.wall_pressure", "effects.pressure.mode"},
+    {"pressure.warm_start", "effects.pressure.warm_start", "effects.pressure.mode"},
+    {"pressure.cg_tolerance", "effects.pressure.mode", NULL},
+    {"pressure.max_cg_iterations", "effects.pressure.mode", NULL},
+    {"pressure.relaxation", "effects.pressure.mode", NULL},
     {"k_min", "effects.springs.k_min", NULL},
     {"yield_ratio", "effects.springs.yield_ratio", NULL},
     {"plasticity", "effects.springs.plasticity", NULL},
@@ -703,6 +714,42 @@ static int parse_carreau_yasuda(loader *L, const mapv *p)
     return 0;
 }
 
+/* effects.pressure: Clavet's double density relaxation (mode relax, the paper's) or the
+ * projection (mode projection, ours); each mode's keys are refused with the other, so that
+ * nothing given is silently unused. */
+static int parse_pressure(loader *L, const mapv *p)
+{
+    stf_fluid_def *f = &L->s->fluid;
+    stf_cy_def *c = &f->cy;
+    static const char *const modes[] = {"relax", "projection", NULL}; /* enum order */
+    static const char *const psolvers[] = {"jacobi", "cg", NULL};
+    static const char *const walls[] = {"own", "mirror", NULL};
+    static const char *const relax_only[] = {"k", "k_near", "rest_density", "tension", NULL};
+    static const char *const projection_only[] = {"eta", "solver", "wall_pressure",
+                                                  "min_iterations", "max_iterations",
+                                                  "warm_start", NULL};
+    if (get_choice(L, p, "mode", modes, &f->pressure_mode) < 0) return SCENE_BAD;
+    const char *const *other = f->pressure_mode == STF_PRESSURE_PROJECTION ? relax_only
+                                                                           : projection_only;
+    for (int k = 0; other[k]; k++)
+        if (has(p, other[k]))
+            return fail_key(L, p, other[k],
+                            f->pressure_mode == STF_PRESSURE_PROJECTION
+                                ? "a key of mode relax (this pressure is mode: projection)"
+                                : "a key of mode: projection (this pressure is mode relax)");
+    if (get_num(L, p, "k", R_ANY, &f->k) < 0 || get_num(L, p, "k_near", R_ANY, &f->k_near) < 0 ||
+        get_bool(L, p, "tension", &f->tension) < 0 ||
+        get_num(L, p, "rest_density", R_ANY, &f->rest_density) < 0 ||
+        get_num(L, p, "eta", R_ANY, &c->eta) < 0 ||
+        get_num(L, p, "warm_start", R_ANY, &c->warm_start) < 0 ||
+        get_count(L, p, "min_iterations", &c->min_pressure_iterations) < 0 ||
+        get_count(L, p, "max_iterations", &c->max_pressure_iterations) < 0 ||
+        get_choice(L, p, "solver", psolvers, &c->pressure_solver) < 0 ||
+        get_choice(L, p, "wall_pressure", walls, &c->wall_pressure) < 0)
+        return SCENE_BAD;
+    return 0;
+}
+
 /* Reads the params of one effect; e is its index in the effect table. */
 static int parse_effect_params(loader *L, int e, const mapv *p)
 {
@@ -714,11 +761,7 @@ static int parse_effect_params(loader *L, int e, const mapv *p)
         if (get_num(L, p, "sigma", R_ANY, &f->sigma) < 0) return SCENE_BAD;
         return get_num(L, p, "beta", R_ANY, &f->beta) < 0 ? SCENE_BAD : 0;
     case 2:
-        if (get_num(L, p, "k", R_ANY, &f->k) < 0) return SCENE_BAD;
-        if (get_num(L, p, "k_near", R_ANY, &f->k_near) < 0) return SCENE_BAD;
-        if (get_bool(L, p, "tension", &f->tension) < 0) return SCENE_BAD;
-
-        return get_num(L, p, "rest_density", R_ANY, &f->rest_density) < 0 ? SCENE_BAD : 0;
+        return parse_pressure(L, p);
     case 3: {
         if (get_num(L, p, "k_min", R_ANY, &f->k_min) < 0) return SCENE_BAD;
         if (get_num(L, p, "yield_ratio", R_ANY, &f->yield_ratio) < 0) return SCENE_BAD;
@@ -741,7 +784,9 @@ static int parse_effect_params(loader *L, int e, const mapv *p)
 
 static const char *const gravity_keys[] = {"g", NULL};
 static const char *const viscosity_keys[] = {"sigma", "beta", NULL};
-static const char *const pressure_keys[] = {"k", "k_near", "rest_density", "tension", NULL};
+static const char *const pressure_keys[] = {"k", "k_near", "rest_density", "tension", "mode",
+                                            "eta", "solver", "wall_pressure", "min_iterations",
+                                            "max_iterations", "warm_start", NULL};
 static const char *const springs_keys[] = {"k_min", "yield_ratio", "plasticity", "liquid_plasticity", "damping", NULL};
 static const char *const history_keys[] = {"q", "d", "memory", "k_hist", "mode", "reference_spacing", "terms", "k_onset", "velocity", NULL};
 static const char *const stick_keys[] = {"stick", NULL};
