@@ -295,6 +295,22 @@ static void test_errors(void)
     EXPECT_ERROR(MIN_HEAD "effects:\n  pressure: {mode: projection, min_iterations: 5, "
                  "max_iterations: 4}\n", "effects.pressure.max_iterations: must be in "
                  "[min_iterations, 10000]", NULL);
+    {   /* the projection's blocks start on the lattice unless fluid.jitter is given */
+        char e2[256];
+        stf_scene *sc = NULL;
+        CHECK(stf_scene_load_string("p.yaml", MIN_HEAD "effects:\n  pressure: {mode: projection}\n",
+                                    NULL, 0, &sc, e2, sizeof e2) == 0 && sc && sc->fluid.jitter == 0 &&
+                  sc->fluid.pressure_mode == STF_PRESSURE_PROJECTION,
+              "projection: jitter %g (%s)", sc ? sc->fluid.jitter : -1, e2);
+        stf_scene_free(sc);
+        sc = NULL;
+        CHECK(stf_scene_load_string("p.yaml", "duration: 1\nfluid:\n  spacing: 0.01\n  jitter: 0.1\n"
+                                    "  blocks: [{min: [0, 0, 0], max: [0.1, 0.1, 0.1]}]\n"
+                                    "effects:\n  pressure: {mode: projection}\n",
+                                    NULL, 0, &sc, e2, sizeof e2) == 0 && sc && sc->fluid.jitter == 0.1,
+              "projection with jitter 0.1: %g (%s)", sc ? sc->fluid.jitter : -1, e2);
+        stf_scene_free(sc);
+    }
     EXPECT_ERROR(MIN_HEAD "effects:\n  pressure: {mode: implicit}\n",
                  "t.yaml:8:20: effects.pressure.mode: expected one of: relax, projection", NULL);
     EXPECT_ERROR(MIN_HEAD "effects: {}\ngravity: [0, 0, 1]\n", "t.yaml:8:1: gravity: unknown key",
