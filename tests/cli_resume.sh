@@ -198,5 +198,17 @@ stop_run KILL cy.h5 $(($(stat -c %s cy_ref.h5) / 2)) run "$cy" -o cy.h5 --durati
 resume cy.h5
 same cy_ref.h5 cy.h5 "carreau_yasuda"
 
+# the Clavet fluid with the projection as its pressure (its warm-start pressures are in the
+# checkpoint and follow the particles' reordering)
+pj=(--set fluid.settle=0 --unset effects.pressure.k --unset effects.pressure.k_near
+    --set effects.pressure.mode=projection --set effects.pressure.solver=cg
+    --set effects.pressure.warm_start=1 --set effects.pressure.eta=0.001)
+"$stf" run "$src/tests/scenes/still_box.yaml" -o pj_ref.h5 --duration 0.6 --quiet --checkpoint off \
+  "${pj[@]}" || fail "projection reference"
+stop_run KILL pj.h5 $(($(stat -c %s pj_ref.h5) / 2)) run "$src/tests/scenes/still_box.yaml" -o pj.h5 \
+  --duration 0.6 --checkpoint 0 "${pj[@]}"
+resume pj.h5
+same pj_ref.h5 pj.h5 "pressure projection"
+
 [ $fails -eq 0 ] && echo "cli_resume: all passed"
 exit $((fails > 0))
