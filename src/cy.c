@@ -160,6 +160,25 @@ static void wrap_positions(stf_fluid *f)
     }
 }
 
+/* The walls' terms, the density and S_i of particle i, and its warm start: w times the last
+ * step's pressure. */
+static void density_one(stf_fluid *f, int i, double w)
+{
+    cy_state *c = f->cy;
+    stf_cy_walls_one(f, i);
+    stf_cy_density_one(f, i);
+    c->kappa[i] = w * c->ktot[i];
+    c->kr[i] = c->kappa[i] * c->irho[i];
+    c->ktot[i] = 0;
+}
+
+/* Algorithm 1 with the scene's solver. */
+static void project(stf_fluid *f, double dt, double w)
+{
+    if (f->def.cy.pressure_solver == STF_PRESSURE_CG) stf_cy_pressure_project_cg(f, dt, w);
+    else stf_cy_pressure_project(f, dt, w);
+}
+
 static int cy_substep(stf_fluid *f, double dt)
 {
     cy_state *c = f->cy;
@@ -192,18 +211,13 @@ static int cy_substep(stf_fluid *f, double dt)
         for (int a = 0; a < 3; a++) g[a] = f->def.gravity[a];
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) {
-        stf_cy_walls_one(f, i);
-        stf_cy_density_one(f, i);
-        c->kappa[i] = w * c->ktot[i];
-        c->kr[i] = c->kappa[i] * c->irho[i];
-        c->ktot[i] = 0;
+        density_one(f, i, w);
         for (int a = 0; a < 3; a++) {
             f->v[3 * i + a] += dt * g[a];
             f->xprev[3 * i + a] = f->x[3 * i + a];
         }
     }
-    if (f->def.cy.pressure_solver == STF_PRESSURE_CG) stf_cy_pressure_project_cg(f, dt, w);
-    else stf_cy_pressure_project(f, dt, w);
+    project(f, dt, w);
     f->stage_seconds[STAGE_PRESSURE] += omp_get_wtime() - t0;
     /* positions are unchanged so far (xprev = x, set in the density pass): the checks look
        at the velocities */
@@ -259,15 +273,8 @@ int stf_cy_pressure_stage(stf_fluid *f, double dt)
     if (stf_cy_pair_offsets(f) != 0) return -1;
     double w = c->warm_n == n ? f->def.cy.warm_start : 0;
 #pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) {
-        stf_cy_walls_one(f, i);
-        stf_cy_density_one(f, i);
-        c->kappa[i] = w * c->ktot[i];
-        c->kr[i] = c->kappa[i] * c->irho[i];
-        c->ktot[i] = 0;
-    }
-    if (f->def.cy.pressure_solver == STF_PRESSURE_CG) stf_cy_pressure_project_cg(f, dt, w);
-    else stf_cy_pressure_project(f, dt, w);
+    for (int i = 0; i < n; i++) density_one(f, i, w);
+    project(f, dt, w);
     stf_cy_wall_reactions(f, dt, 0);
     c->stats.substeps = 1;
     c->stats.dt_min = c->stats.dt_max = dt;
