@@ -474,7 +474,9 @@ int stf_sim_step(stf_sim *s)
          * substeps the fluid took. */
         double lo = dt, hi = dt;
         long taken = 1;
-        if (sc->fluid.model == STF_MODEL_CARREAU_YASUDA) {
+        if (sc->fluid.model == STF_MODEL_CARREAU_YASUDA ||
+            ((sc->fluid.effects & STF_EFFECT_PRESSURE) &&
+             sc->fluid.pressure_mode == STF_PRESSURE_PROJECTION)) { /* the projection's too */
             stf_solver_stats st;
             stf_fluid_solver_stats(s->fluid, &st);
             if (st.substeps > 0) taken = st.substeps, lo = st.dt_min, hi = st.dt_max;

@@ -292,7 +292,6 @@ void stf_cy_follow_order(stf_fluid *f, const int32_t *perm)
     if (!c || c->warm_n != f->n) return;
     for (int i = 0; i < f->n; i++) c->kappa[i] = c->ktot[perm[i]];
     memcpy(c->ktot, c->kappa, (size_t)f->n * sizeof *c->ktot);
-
 }
 
 /* One coupled step of length dt: a single substep, or with cfl > 0 substeps of equal length

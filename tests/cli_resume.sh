@@ -209,6 +209,15 @@ stop_run KILL pj.h5 $(($(stat -c %s pj_ref.h5) / 2)) run "$src/tests/scenes/stil
   --duration 0.6 --checkpoint 0 "${pj[@]}"
 resume pj.h5
 same pj_ref.h5 pj.h5 "pressure projection"
+# its solver's statistics per frame and per run, as the Carreau-Yasuda model's
+/usr/bin/python3 - <<'PY' || fail "pressure projection: the solver's statistics are missing or out of range"
+import h5py
+f = h5py.File("pj_ref.h5", "r")
+frames = [k for k in f if k.startswith("Step#") and k != "Step#0"]
+it = [f[k].attrs["pressure_iterations_mean"] for k in frames]
+assert len(it) > 10 and min(it) >= 2, it[:5]          # min_iterations is 2
+assert 0 <= f.attrs["density_error_max"] <= 0.001 * 1.0001, f.attrs["density_error_max"]
+PY
 
 [ $fails -eq 0 ] && echo "cli_resume: all passed"
 exit $((fails > 0))

@@ -482,7 +482,11 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
         fprintf(stderr, "stf: resuming %s at t = %.4f s (step %ld of %ld)\n", out, sim->time,
                 sim->steps, steps);
     double t0 = omp_get_wtime(), last_checkpoint = t0;
-    int cy = sc->fluid.model == STF_MODEL_CARREAU_YASUDA;
+    /* a projection's statistics: the Carreau-Yasuda model's, or the Clavet fluid's with the
+       projection as its pressure */
+    int model_cy = sc->fluid.model == STF_MODEL_CARREAU_YASUDA;
+    int cy = model_cy || ((sc->fluid.effects & STF_EFFECT_PRESSURE) &&
+                          sc->fluid.pressure_mode == STF_PRESSURE_PROJECTION);
     solver_sums *u = &p.sums;
     sim->stop = stop_now;
     for (long s = first; s <= steps && status == 0; s++) {
@@ -567,11 +571,15 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
         stf_h5_attr_double(h, "density_error_max", u->run_err_max);
         stf_h5_attr_double(h, "viscosity_iterations_max", u->run_cg_max);
         stf_h5_attr_double(h, "viscosity_iterations_mean", u->run_cg_sum / subs);
-        if (!a->quiet)
+        if (!a->quiet && model_cy)
             fprintf(stderr, "stf: carreau_yasuda: pressure iterations mean %.2f max %.0f, mean "
                     "density error max %.3g%% (eta %g%%), viscosity CG iterations mean %.1f max %.0f\n",
                     u->run_it_sum / subs, u->run_it_max, 100 * u->run_err_max,
                     100 * sc->fluid.cy.eta, u->run_cg_sum / subs, u->run_cg_max);
+        else if (!a->quiet)
+            fprintf(stderr, "stf: pressure projection: iterations mean %.2f max %.0f, mean "
+                    "density error max %.3g%% (eta %g%%)\n", u->run_it_sum / subs, u->run_it_max,
+                    100 * u->run_err_max, 100 * sc->fluid.cy.eta);
     }
     if (status == 2) fprintf(stderr, "stf: writing %s failed: %s\n", out, stf_h5_last_error(h));
     stf_h5_flush_for_reading(h);
