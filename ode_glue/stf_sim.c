@@ -470,13 +470,11 @@ int stf_sim_step(stf_sim *s)
             stf_ode_substep_force(s->coupler, s->bodies[k], f, torque);
             for (int a = 0; a < 3; a++) s->fluid_impulse[3 * k + a] += f[a] * dt;
         }
-        /* The Carreau-Yasuda solver splits the coupled step again by its own CFL: count the
-         * substeps the fluid took. */
+        /* A projection's statistics add up; the Carreau-Yasuda solver also splits the coupled
+         * step again by its own CFL: count the substeps the fluid took. */
         double lo = dt, hi = dt;
         long taken = 1;
-        if (sc->fluid.model == STF_MODEL_CARREAU_YASUDA ||
-            ((sc->fluid.effects & STF_EFFECT_PRESSURE) &&
-             sc->fluid.pressure_mode == STF_PRESSURE_PROJECTION)) { /* the projection's too */
+        if (stf_def_projects(&sc->fluid)) {
             stf_solver_stats st;
             stf_fluid_solver_stats(s->fluid, &st);
             if (st.substeps > 0) taken = st.substeps, lo = st.dt_min, hi = st.dt_max;

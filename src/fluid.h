@@ -91,8 +91,7 @@ static inline int has(const stf_fluid *f, unsigned effect) { return (f->def.effe
 /* 1 when the Clavet model's pressure stage is the projection (stf_cy_pressure_stage). */
 static inline int projects(const stf_fluid *f)
 {
-    return f->def.model == STF_MODEL_CLAVET_STF && has(f, STF_EFFECT_PRESSURE) &&
-           f->def.pressure_mode == STF_PRESSURE_PROJECTION;
+    return f->def.model == STF_MODEL_CLAVET_STF && stf_def_projects(&f->def);
 }
 
 /* The hot neighbour loops get an AVX2 clone on x86-64 with GCC, chosen at load time. Same

@@ -251,6 +251,15 @@ typedef struct stf_fluid_def {
     double periodic_origin[3];
 } stf_fluid_def;
 
+/* 1 when the fluid's pressure is a projection, and stf_fluid_solver_stats reports it: the
+ * Carreau-Yasuda model's, or the Clavet model's pressure effect with pressure_mode
+ * projection (stf_fluid_check_def refuses that mode with the Carreau-Yasuda model). */
+static inline int stf_def_projects(const stf_fluid_def *d)
+{
+    return d->model == STF_MODEL_CARREAU_YASUDA ||
+           ((d->effects & STF_EFFECT_PRESSURE) && d->pressure_mode == STF_PRESSURE_PROJECTION);
+}
+
 /* Defaults: a cornstarch-like viscoelastic fluid at 1 cm spacing with every effect on. */
 STF_API stf_fluid_def stf_default_fluid_def(void);
 

@@ -197,6 +197,43 @@ static double column_density(int mode, double *rms)
     return e;
 }
 
+/* A 9^3 lattice with random velocities (from the stream at seed) about a still sphere of
+ * 2.5 spacings, every internal effect on and the projection as the pressure; *id is the
+ * sphere's collider. */
+static stf_fluid *projection_blob(unsigned long long seed, int *id)
+{
+    stf_fluid_def d = stf_default_fluid_def();
+    d.effects = STF_EFFECT_VISCOSITY | STF_EFFECT_PRESSURE | STF_EFFECT_SPRINGS |
+                STF_EFFECT_HISTORY | STF_EFFECT_BOUNDARY_STICK;
+    d.pressure_mode = STF_PRESSURE_PROJECTION;
+    d.cy.eta = 1e-3, d.cy.pressure_solver = STF_PRESSURE_CG;
+    d.cy.wall_pressure = STF_WALL_PRESSURE_MIRROR;
+    stf_fluid *f = make_fluid(&d);
+    if (!f) return NULL;
+    stf_collider_def sph = stf_default_collider_def();
+    sph.shape = STF_SHAPE_SPHERE, sph.radius = 0.025, sph.friction = 0, sph.stick = 0;
+    *id = stf_fluid_add_collider(f, &sph, err, sizeof err);
+    CHECK(*id >= 0, "sphere: %s", err);
+    if (*id < 0) {
+        stf_fluid_destroy(f);
+        return NULL;
+    }
+    static const double eye[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    stf_fluid_set_collider_state(f, *id, (double[3]){0.04, 0.04, 0.04}, eye,
+                                 (double[3]){0, 0, 0}, (double[3]){0, 0, 0});
+    const double s = d.spacing;
+    rng_state = seed;
+    for (int c = 0; c < 9; c++)
+        for (int b = 0; b < 9; b++)
+            for (int a = 0; a < 9; a++) {
+                double x[3] = {a * s, b * s, c * s};
+                double v[3] = {0.2 + 0.3 * urand(), -0.1 + 0.3 * urand(), 0.05 + 0.3 * urand()};
+                stf_fluid_add_particle(f, x, v);
+            }
+    stf_fluid_remove_inside(f, *id);
+    return f;
+}
+
 static void test_projection(void)
 {
     /* 1. incompressible: the column's bulk within 1% of the material's density; the
@@ -214,32 +251,10 @@ static void test_projection(void)
 
     /* 2. momentum: the projection's pair terms are antisymmetric, and what the walls give the
        particles goes back to the colliders: fluid plus colliders keep their momentum */
-    stf_fluid_def d = stf_default_fluid_def();
-    d.effects = STF_EFFECT_VISCOSITY | STF_EFFECT_PRESSURE | STF_EFFECT_SPRINGS |
-                STF_EFFECT_HISTORY | STF_EFFECT_BOUNDARY_STICK;
-    d.pressure_mode = STF_PRESSURE_PROJECTION;
-    d.cy.eta = 1e-3, d.cy.pressure_solver = STF_PRESSURE_CG;
-    d.cy.wall_pressure = STF_WALL_PRESSURE_MIRROR;
-    stf_fluid *f = make_fluid(&d);
-    if (!f) return;
-    stf_collider_def sph = stf_default_collider_def();
-    sph.shape = STF_SHAPE_SPHERE, sph.radius = 0.025, sph.friction = 0, sph.stick = 0;
-    int id = stf_fluid_add_collider(f, &sph, err, sizeof err);
-    CHECK(id >= 0, "sphere: %s", err);
-    if (id < 0) return;
-    static const double eye[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
-    stf_fluid_set_collider_state(f, id, (double[3]){0.04, 0.04, 0.04}, eye, (double[3]){0, 0, 0},
-                                 (double[3]){0, 0, 0});
-    const double s = d.spacing;
     unsigned long long seed = rng_state;
-    for (int c = 0; c < 9; c++)
-        for (int b = 0; b < 9; b++)
-            for (int a = 0; a < 9; a++) {
-                double x[3] = {a * s, b * s, c * s};
-                double v[3] = {0.2 + 0.3 * urand(), -0.1 + 0.3 * urand(), 0.05 + 0.3 * urand()};
-                stf_fluid_add_particle(f, x, v);
-            }
-    stf_fluid_remove_inside(f, id);
+    int id;
+    stf_fluid *f = projection_blob(seed, &id);
+    if (!f) return;
     int n = stf_fluid_count(f);
     double m = stf_fluid_particle_mass(f), P0[3], A0, P[3], A, J[3] = {0, 0, 0};
     double *v = malloc((size_t)n * 3 * sizeof *v);
@@ -273,20 +288,8 @@ static void test_projection(void)
     uint64_t h1 = stf_fluid_hash(f);
     stf_fluid_destroy(f);
     stf_set_threads(2);
-    stf_fluid *g = make_fluid(&d);
+    stf_fluid *g = projection_blob(seed, &id);
     if (g) {
-        stf_fluid_add_collider(g, &sph, err, sizeof err);
-        stf_fluid_set_collider_state(g, id, (double[3]){0.04, 0.04, 0.04}, eye,
-                                     (double[3]){0, 0, 0}, (double[3]){0, 0, 0});
-        rng_state = seed;
-        for (int c = 0; c < 9; c++)
-            for (int b = 0; b < 9; b++)
-                for (int a = 0; a < 9; a++) {
-                    double x[3] = {a * s, b * s, c * s};
-                    double v1[3] = {0.2 + 0.3 * urand(), -0.1 + 0.3 * urand(), 0.05 + 0.3 * urand()};
-                    stf_fluid_add_particle(g, x, v1);
-                }
-        stf_fluid_remove_inside(g, id);
         run(g, 100, 1e-3);
         CHECK(stf_fluid_hash(g) == h1, "projection: 2 threads %016llx against 1 thread %016llx",
               (unsigned long long)stf_fluid_hash(g), (unsigned long long)h1);

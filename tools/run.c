@@ -484,9 +484,7 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
     double t0 = omp_get_wtime(), last_checkpoint = t0;
     /* a projection's statistics: the Carreau-Yasuda model's, or the Clavet fluid's with the
        projection as its pressure */
-    int model_cy = sc->fluid.model == STF_MODEL_CARREAU_YASUDA;
-    int cy = model_cy || ((sc->fluid.effects & STF_EFFECT_PRESSURE) &&
-                          sc->fluid.pressure_mode == STF_PRESSURE_PROJECTION);
+    int model_cy = sc->fluid.model == STF_MODEL_CARREAU_YASUDA, cy = stf_def_projects(&sc->fluid);
     solver_sums *u = &p.sums;
     sim->stop = stop_now;
     for (long s = first; s <= steps && status == 0; s++) {

@@ -32,7 +32,6 @@ typedef struct loader {
     const stf_override *ov;
     int nov;
     stf_scene *s;
-    int jitter_given; /* fluid.jitter was in the scene (or its material, or a --set) */
 } loader;
 
 /* A mapping being read, with what "missing key" errors point at. */
@@ -629,10 +628,6 @@ static int parse_fluid(loader *L, const mapv *top)
         get_num(L, &m, "reference_spacing", R_ANY, &f->material_spacing) < 0 ||
         get_num(L, &m, "jitter", R_ANY, &f->jitter) < 0)
         return SCENE_BAD;
-    /* the Carreau-Yasuda projection turns a jittered lattice's density errors into velocity
-       (h (rho - rho0) / (rho0 dt) in one step): its blocks start on the lattice by default */
-    if (f->model == STF_MODEL_CARREAU_YASUDA && !has(&m, "jitter")) f->jitter = 0;
-    L->jitter_given = has(&m, "jitter");
     int relax;
     if (get_choice(L, &m, "relaxation", relaxations, &relax) < 0) return SCENE_BAD;
     if (has(&m, "relaxation")) f->relaxation = relax ? STF_RELAX_GAUSS_SEIDEL : STF_RELAX_JACOBI;
@@ -826,9 +821,12 @@ static int parse_effects(loader *L, const mapv *top)
     }
     if (has(&m, "history") && !has(&m, "springs"))
         return fail_key(L, &m, "history", "needs effects.springs");
-    /* so does the Clavet fluid's projection (effects.pressure.mode: projection) */
-    if (L->s->fluid.pressure_mode == STF_PRESSURE_PROJECTION && !L->jitter_given)
-        L->s->fluid.jitter = 0;
+    /* a projection (the Carreau-Yasuda model's, or the Clavet fluid's pressure.mode
+       projection) turns a jittered lattice's density errors into velocity (h (rho - rho0) /
+       (rho0 dt) in one step): its blocks start on the lattice unless fluid.jitter is given */
+    struct fy_node *jk;
+    node_at(L, "fluid.jitter", &jk);
+    if (stf_def_projects(&L->s->fluid) && !jk) L->s->fluid.jitter = 0;
     int cy = L->s->fluid.model == STF_MODEL_CARREAU_YASUDA;
     if (has(&m, "carreau_yasuda") && !cy)
         return fail_key(L, &m, "carreau_yasuda", "needs fluid.model: carreau_yasuda");
