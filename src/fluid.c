@@ -181,6 +181,21 @@ int stf_fluid_check_def(const stf_fluid_def *d, char *err, size_t errlen, const 
         BAD("k_near", "k_near: must be >= 0 (got %g)", d->k_near);
     if (!(d->rest_density >= 0 && isfinite(d->rest_density)))
         BAD("rest_density", "rest_density: must be >= 0 (got %g)", d->rest_density);
+    if (d->rest_packing != STF_REST_LATTICE && d->rest_packing != STF_REST_LIQUID)
+        BAD("rest_packing", "rest: must be lattice or liquid (got %d)", d->rest_packing);
+    if (d->rest_packing == STF_REST_LIQUID && d->rest_density > 0)
+        BAD("rest_packing", "rest: liquid sets the rest density; give rest_density or rest, not "
+                            "both");
+    if (d->rest_packing == STF_REST_LIQUID &&
+        (d->model != STF_MODEL_CLAVET_STF || d->pressure_mode != STF_PRESSURE_RELAX))
+        BAD("rest_packing", "rest: liquid is the relaxation's rest density (mode relax of the "
+                            "clavet_stf model)");
+    if (d->rest_packing == STF_REST_LIQUID && d->tension)
+        BAD("rest_packing", "rest: liquid is measured without tension (tension: false)");
+    if (d->rest_packing == STF_REST_LIQUID && fabs(d->h - 2 * d->spacing) > 1e-9 * d->spacing &&
+        d->h > 0)
+        BAD("rest_packing", "rest: liquid is measured at h = 2 spacings (got h = %g spacings)",
+            d->h / d->spacing);
     if (!(d->k_min >= 0 && isfinite(d->k_min)))
         BAD("k_min", "k_min: must be >= 0 (got %g)", d->k_min);
     if (!(d->yield_ratio >= 0 && d->yield_ratio <= 1))
@@ -284,6 +299,22 @@ int stf_fluid_create(const stf_fluid_def *def, stf_fluid **out, char *err, size_
     f->rest_density = lattice_rest_density(def->spacing, f->h, def->tension ? def->k : 0,
                                            def->k_near, &rest_near);
     f->rest_near = def->tension ? 0 : rest_near;
+    f->lattice = def->spacing;
+    if (def->rest_packing == STF_REST_LIQUID) {
+        /* The liquid's kernel sum at the fluid's number density; the blocks are laid on the
+           lattice whose kernel sum it is (a little wider), so a block starts at rest, without
+           the stored pressure of a lattice denser than the liquid (a dropped ball then
+           breathes and rebounds without any history), and settles into the liquid's packing
+           at the fluid's density. The lattice's sum falls with its spacing: bisection. */
+        f->rest_density *= STF_LIQUID_PACKING;
+        double lo = def->spacing, hi = 1.1 * def->spacing, dummy;
+        for (int it = 0; it < 60; it++) {
+            double mid = 0.5 * (lo + hi);
+            if (lattice_rest_density(mid, f->h, 0, 0, &dummy) > f->rest_density) lo = mid;
+            else hi = mid;
+        }
+        f->lattice = 0.5 * (lo + hi);
+    }
     if (def->rest_density > 0) f->rest_density = def->rest_density;
     f->reorder_interval = 16;
     stf_pressure_wall_table(f);
@@ -394,9 +425,14 @@ static void lattice_jitter(double amp, uint32_t id, double x[3])
 
 int stf_fluid_add_block(stf_fluid *f, const double lo[3], const double hi[3], const double v[3])
 {
-    double s = f->def.spacing;
+    double s = f->lattice, off[3] = {0, 0, 0};
     long cnt[3];
     for (int a = 0; a < 3; a++) cnt[a] = hi[a] > lo[a] ? (long)floor((hi[a] - lo[a]) / s + 1e-9) : 0;
+    if (s != f->def.spacing) /* rest: liquid: the nearest count of the wider lattice, centred */
+        for (int a = 0; a < 3; a++) {
+            cnt[a] = hi[a] > lo[a] ? (long)floor((hi[a] - lo[a]) / s + 0.5) : 0;
+            off[a] = 0.5 * ((hi[a] - lo[a]) - (double)cnt[a] * s);
+        }
     if (cnt[0] * cnt[1] * cnt[2] > 100000000L) return -1;
     if (reserve(f, f->n + (int)(cnt[0] * cnt[1] * cnt[2])) != 0) return -1;
     int added = 0;
@@ -404,9 +440,10 @@ int stf_fluid_add_block(stf_fluid *f, const double lo[3], const double hi[3], co
     for (long c = 0; c < cnt[2]; c++)
         for (long b = 0; b < cnt[1]; b++)
             for (long a = 0; a < cnt[0]; a++) {
-                double x[3] = {lo[0] + ((double)a + 0.5) * s, lo[1] + ((double)b + 0.5) * s,
-                                lo[2] + ((double)c + 0.5) * s};
-                lattice_jitter(f->def.jitter * s, (uint32_t)f->next_id, x);
+                double x[3] = {lo[0] + off[0] + ((double)a + 0.5) * s,
+                                lo[1] + off[1] + ((double)b + 0.5) * s,
+                                lo[2] + off[2] + ((double)c + 0.5) * s};
+                lattice_jitter(f->def.jitter * f->def.spacing, (uint32_t)f->next_id, x);
                 if (stf_fluid_add_particle(f, x, v) < 0) return -1;
                 added++;
             }
@@ -415,7 +452,7 @@ int stf_fluid_add_block(stf_fluid *f, const double lo[3], const double hi[3], co
 
 int stf_fluid_add_ball(stf_fluid *f, const double c[3], double r, const double v[3])
 {
-    double s = f->def.spacing;
+    double s = f->lattice;
     if (!(r > 0)) return 0;
     long m = (long)floor(r / s);
     if (m > 250) return -1; /* (2m+1)^3 > 10^8 sites */
@@ -428,7 +465,7 @@ int stf_fluid_add_ball(stf_fluid *f, const double c[3], double r, const double v
             for (long a = -m; a <= m; a++) {
                 if ((double)(a * a + b * b + k * k) * s * s >= r * r) continue;
                 double x[3] = {c[0] + (double)a * s, c[1] + (double)b * s, c[2] + (double)k * s};
-                lattice_jitter(f->def.jitter * s, (uint32_t)f->next_id, x);
+                lattice_jitter(f->def.jitter * f->def.spacing, (uint32_t)f->next_id, x);
                 if (stf_fluid_add_particle(f, x, v) < 0) return -1;
                 added++;
             }
@@ -847,7 +884,7 @@ int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
         "stiffnesses below are scaled to spacing)\nh: %.9g  # m\ndensity: %.9g  # kg/m^3\n"
         "particle_mass: %.9g  # kg\njitter: %.9g  # spacings\ngravity: [%.9g, %.9g, %.9g]  # m/s^2\n"
         "sigma: %.9g  # 1/s\nbeta: %.9g  # 1/m\nk: %.9g  # m/s^2\nk_near: %.9g  # m/s^2\n"
-        "tension: %s\nrest_density: %.9g  # kernel sum\nrest_near_density: %.9g  # kernel sum\n"
+        "tension: %s\nrest: %s\nrest_density: %.9g  # kernel sum\nrest_near_density: %.9g  # kernel sum\n"
         "k_min: %.9g  # 1/s^2\nyield_ratio: %.9g\nplasticity: %.9g  # 1/s\nliquid_plasticity: %.9g  # 1/s\n"
         "relaxation: %s\niterations: %d\nspring_damping: %.9g  # s\nq: %.9g\n"
         "history_mode: %s\nhistory_velocity: %s\nhistory_steps: %d  # at the first step (with memory: memory / dt)\n"
@@ -856,7 +893,7 @@ int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
         "stick: %.9g  # 1/s\n",
         effects, d->spacing, d->material_spacing, f->h, d->density, f->mass, d->jitter, d->gravity[0], d->gravity[1],
         d->gravity[2], d->sigma, d->beta, d->k, d->k_near, d->tension ? "true" : "false",
-        f->rest_density, f->rest_near, d->k_min, d->yield_ratio, d->plasticity,
+        d->rest_packing == STF_REST_LIQUID ? "liquid" : "lattice", f->rest_density, f->rest_near, d->k_min, d->yield_ratio, d->plasticity,
         d->liquid_plasticity >= 0 ? d->liquid_plasticity : d->plasticity,
         d->relaxation == STF_RELAX_GAUSS_SEIDEL ? "gauss_seidel" : "jacobi", d->iterations,
         d->spring_damping, d->q,

@@ -29,6 +29,8 @@ struct stf_fluid {
     double mass;         /* particle mass, kg */
     double rest_density; /* kernel rest density used (def's, or the lattice's) */
     double rest_near;    /* near density below which near-pressure is 0 (no tension) */
+    double lattice;      /* the blocks' lattice spacing, m: def.spacing, or with rest: liquid the
+                            spacing whose lattice has the liquid's rest density as kernel sum */
 
     int n, cap;
     double *x, *v, *xprev; /* 3n, interleaved */

@@ -83,6 +83,22 @@ enum stf_pressure_mode {
                                     rest density to eta (src/cy.c, stf_cy_pressure_stage) */
 };
 
+/* The Clavet relaxation's rest density when none is given (stf_fluid_def.rest_packing, scene
+ * key effects.pressure.rest). The kernel sum is a proxy for mass per volume, and it depends on
+ * the packing: a settled liquid's disordered packing has a lower kernel sum than the cubic
+ * lattice at the same number density, so a fluid held at the lattice's kernel sum is denser
+ * than its density by 2-2.6% (src/README.md, "The rest density of the liquid"). */
+enum stf_rest_packing {
+    STF_REST_LATTICE = 0, /* the cubic lattice's kernel sum: a lattice block starts at rest */
+    STF_REST_LIQUID = 1,  /* ours: the lattice's times STF_LIQUID_PACKING, the settled liquid's
+                             at the same number density, so the fluid is at its density */
+};
+
+/* The kernel sum of the settled liquid over the cubic lattice's at the same number density, for
+ * Clavet's kernel (1 - r/h)^2 at h = 2 spacings (measured: src/README.md, "The rest density of
+ * the liquid"). */
+#define STF_LIQUID_PACKING 0.975
+
 /* The Carreau-Yasuda model's pressure projection (cy_pressure.c). */
 enum stf_pressure_solver {
     STF_PRESSURE_JACOBI = 0, /* Algorithm 1: Jacobi with Eq. 21's k_i, each iteration's k_i >= 0 */
@@ -197,6 +213,8 @@ typedef struct stf_fluid_def {
     double k_near;         /* near-pressure stiffness, m/s^2 (>= 0) */
     double rest_density;   /* rest kernel density (sum of (1-r/h)^2), dimensionless;
                               0 means the value of the initial cubic lattice */
+    int rest_packing;      /* enum stf_rest_packing (default lattice): the packing whose kernel
+                              sum is the rest density when rest_density is 0 */
     int tension;           /* 1: Clavet's pressure as written, negative below rest density
                               (cohesion, surface tension); 0: pressure and near-pressure only
                               push, both measured from the rest lattice (no tension) */

@@ -167,13 +167,14 @@ static double bulk_density_error(const stf_fluid *f, double half, double s)
 /* A column of the cornstarch liquid (pressure and viscosity at the material's values) left to
  * rest under gravity for 1 s from the lattice: its bulk's density error (the mean of 10
  * samples over the last 0.1 s) and its rms speed at the end. */
-static double column_density(int mode, double *rms)
+static double column_density(int mode, int packing, double *rms)
 {
     stf_fluid_def d = stf_default_fluid_def();
     d.effects = STF_EFFECT_GRAVITY | STF_EFFECT_VISCOSITY | STF_EFFECT_PRESSURE;
     d.spacing = 0.02, d.density = 1290, d.jitter = 0;
     d.material_spacing = 0.02, d.sigma = 10, d.k = 4000, d.k_near = 800; /* the material's */
     d.pressure_mode = mode;
+    d.rest_packing = packing;
     d.cy.eta = 1e-3, d.cy.pressure_solver = STF_PRESSURE_CG;
     d.cy.wall_pressure = STF_WALL_PRESSURE_MIRROR, d.cy.warm_start = 1;
     stf_fluid *f = make_fluid(&d);
@@ -238,16 +239,23 @@ static void test_projection(void)
 {
     /* 1. incompressible: the column's bulk within 1% of the material's density; the
        relaxation's finite stiffness compresses it more */
-    double rms_relax, rms_proj;
-    double e_relax = column_density(STF_PRESSURE_RELAX, &rms_relax);
-    double e_proj = column_density(STF_PRESSURE_PROJECTION, &rms_proj);
+    double rms_relax, rms_proj, rms_liquid;
+    double e_relax = column_density(STF_PRESSURE_RELAX, STF_REST_LATTICE, &rms_relax);
+    double e_proj = column_density(STF_PRESSURE_PROJECTION, STF_REST_LATTICE, &rms_proj);
+    double e_liquid = column_density(STF_PRESSURE_RELAX, STF_REST_LIQUID, &rms_liquid);
     CHECK(fabs(e_proj) <= 0.01, "projection: the column's bulk density is off by %+.2f%%",
           100 * e_proj);
     CHECK(fabs(e_relax) > 2 * fabs(e_proj), "relaxation %+.2f%% against projection %+.2f%%: the "
           "projection should hold the density better", 100 * e_relax, 100 * e_proj);
     printf("projection: a 0.32 m column at rest after 1 s, bulk density %+.2f%% (rms speed %.1f "
-           "mm/s); Clavet's relaxation %+.2f%% (rms %.1f mm/s)\n",
-           100 * e_proj, 1000 * rms_proj, 100 * e_relax, 1000 * rms_relax);
+           "mm/s); Clavet's relaxation %+.2f%% (rms %.1f mm/s), at the liquid's rest density "
+           "%+.2f%% (rms %.1f mm/s)\n",
+           100 * e_proj, 1000 * rms_proj, 100 * e_relax, 1000 * rms_relax, 100 * e_liquid,
+           1000 * rms_liquid);
+    /* 1b. the relaxation at the liquid's rest density (rest: liquid) holds the density as well:
+       the lattice's kernel sum is what compressed it, not the finite stiffness */
+    CHECK(fabs(e_liquid) <= 0.01, "relaxation with rest: liquid: the column's bulk density is off "
+          "by %+.2f%%", 100 * e_liquid);
 
     /* 2. momentum: the projection's pair terms are antisymmetric, and what the walls give the
        particles goes back to the colliders: fluid plus colliders keep their momentum */
