@@ -200,7 +200,7 @@ same cy_ref.h5 cy.h5 "carreau_yasuda"
 
 # the Clavet fluid with the projection as its pressure (its warm-start pressures are in the
 # checkpoint and follow the particles' reordering)
-pj=(--set fluid.settle=0 --unset effects.pressure.k --unset effects.pressure.k_near
+pj=(--set fluid.settle=0 --unset effects.pressure.k --unset effects.pressure.k_near --unset effects.pressure.rest
     --set effects.pressure.mode=projection --set effects.pressure.solver=cg
     --set effects.pressure.warm_start=1 --set effects.pressure.eta=0.001)
 "$stf" run "$src/tests/scenes/still_box.yaml" -o pj_ref.h5 --duration 0.6 --quiet --checkpoint off \
