@@ -7,8 +7,8 @@
 #    tenth of the spacing), and the time it keeps its shape (fluid.solid_duration) grows with
 #    d: none < 50 < 150 < 250, each step by >= 2 frames. The windows are longer than the
 #    bounce, so the three rebounds are the same (Eq. 3 sums the same samples until 1.65 s
-#    after the start); they differ when the fluid softens, seconds later (measured 0.04, 4.56,
-#    6.46, 6.85 s): the run must outlast the longest memory's softening, hence 14 s;
+#    after the start); they differ when the fluid softens, seconds later (measured 0, 4.77,
+#    6.20, 6.72 s): the run must outlast the longest memory's softening, hence 14 s;
 #  - Fig. 10, at 1 cm (895 particles, the scene's own spacing and memory, 2 s): the ball with
 #    history bounces (twice as high as, and 1.5 mm higher than, the one without) and keeps its
 #    shape at least 0.4 s, the one without keeps it less than 0.2 s.
