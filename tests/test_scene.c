@@ -295,6 +295,15 @@ static void test_errors(void)
     EXPECT_ERROR(MIN_HEAD "effects:\n  pressure: {mode: projection, min_iterations: 5, "
                  "max_iterations: 4}\n", "effects.pressure.max_iterations: must be in "
                  "[min_iterations, 10000]", NULL);
+    /* the relaxation's rest packing: a choice, exclusive with rest_density and tension */
+    EXPECT_ERROR(MIN_HEAD "effects:\n  pressure: {rest: random}\n",
+                 "effects.pressure.rest: expected one of: lattice, liquid", NULL);
+    EXPECT_ERROR(MIN_HEAD "effects:\n  pressure: {rest: liquid, rest_density: 2.5}\n",
+                 "effects.pressure.rest: liquid sets the rest density", NULL);
+    EXPECT_ERROR(MIN_HEAD "effects:\n  pressure: {rest: liquid, tension: true}\n",
+                 "effects.pressure.rest: liquid is measured without tension", NULL);
+    EXPECT_ERROR(MIN_HEAD "effects:\n  pressure: {mode: projection, rest: liquid}\n",
+                 "effects.pressure.rest: a key of mode relax", NULL);
     {   /* the projection's blocks start on the lattice unless fluid.jitter is given */
         char e2[256];
         stf_scene *sc = NULL;
