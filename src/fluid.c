@@ -192,8 +192,8 @@ int stf_fluid_check_def(const stf_fluid_def *d, char *err, size_t errlen, const 
                             "clavet_stf model)");
     if (d->rest_packing == STF_REST_LIQUID && d->tension)
         BAD("rest_packing", "rest: liquid is measured without tension (tension: false)");
-    if (d->rest_packing == STF_REST_LIQUID && fabs(d->h - 2 * d->spacing) > 1e-9 * d->spacing &&
-        d->h > 0)
+    if (d->rest_packing == STF_REST_LIQUID && d->h > 0 &&
+        fabs(d->h - 2 * d->spacing) > 1e-9 * d->spacing)
         BAD("rest_packing", "rest: liquid is measured at h = 2 spacings (got h = %g spacings)",
             d->h / d->spacing);
     if (!(d->k_min >= 0 && isfinite(d->k_min)))
@@ -432,7 +432,7 @@ int stf_fluid_add_block(stf_fluid *f, const double lo[3], const double hi[3], co
        quarter site (an eighth on each side: the outer sites stay 3/8 of a site inside the block,
        wider than the jitter; at half a site a jittered particle started in the floor's band, and
        the 1.5 cm bowling pool blew up in its first steps) */
-    if (s != f->def.spacing)
+    if (f->def.rest_packing == STF_REST_LIQUID)
         for (int a = 0; a < 3; a++) {
             cnt[a] = hi[a] > lo[a] ? (long)floor((hi[a] - lo[a]) / s + 0.25) : 0;
             off[a] = 0.5 * ((hi[a] - lo[a]) - (double)cnt[a] * s);

@@ -238,7 +238,7 @@ static stf_fluid *projection_blob(unsigned long long seed, int *id)
 static void test_projection(void)
 {
     /* 1. incompressible: the column's bulk within 1% of the material's density; the
-       relaxation's finite stiffness compresses it more */
+       relaxation at the lattice's rest density compresses it more */
     double rms_relax, rms_proj, rms_liquid;
     double e_relax = column_density(STF_PRESSURE_RELAX, STF_REST_LATTICE, &rms_relax);
     double e_proj = column_density(STF_PRESSURE_PROJECTION, STF_REST_LATTICE, &rms_proj);
