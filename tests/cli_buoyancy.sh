@@ -13,38 +13,7 @@
 stf=$STF
 export OMP_NUM_THREADS=1 OMP_WAIT_POLICY=passive
 for RS in 3 6 10; do
-    /usr/bin/python3 - "$RS" > ball_$RS.yaml <<'PY'
-import sys
-RS = float(sys.argv[1]); s = 0.005; R = RS * s
-W = round((2 * R + 8 * s) / s) * s; H = round((2 * R + 10 * s) / s) * s
-print(f"""name: buoyancy_{sys.argv[1]}
-duration: 0.004
-dt: 0.001
-frame_rate: 1000
-fluid:
-  spacing: {s}
-  density: 970
-  settle: 0.3
-  blocks:
-    - min: [{-W / 2}, {-W / 2}, 0.0]
-      max: [{W / 2}, {W / 2}, {H}]
-effects:
-  gravity: {{g: [0, 0, -9.81]}}
-  viscosity: {{sigma: 2.0}}
-  pressure: {{k: 1000, k_near: 200}}
-container:
-  size: [{W}, {W}, {H + 0.1}]
-  wall: 0.01
-  friction: 0.0
-  stick: false
-bodies:
-  - name: ball
-    shape: sphere
-    radius: {R}
-    motion: kinematic
-    position: [0, 0, {H / 2}]
-""")
-PY
+    /usr/bin/python3 "$PROJ/tests/held_sphere.py" scene cl "$RS" 0.004 > ball_$RS.yaml
     "$stf" run ball_$RS.yaml -o ball_$RS.h5 --quiet 2>err_$RS.txt || fail "R = $RS spacings: the run failed: $(cat err_$RS.txt)"
     /usr/bin/python3 - "$RS" <<'PY' || fail "R = $RS spacings: the first step's buoyancy is not Archimedes' within 5 %"
 import sys, h5py, numpy as np

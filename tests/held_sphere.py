@@ -4,7 +4,7 @@
 #       MODEL cl (Clavet, cli_buoyancy's water: k 1000, sigma 2) | cy (Carreau-Yasuda,
 #       Newtonian nu = 3.8e-4 m^2/s, the body sweep's); a kinematic sphere of radius RS spacings
 #       (5 mm) at mid-depth of a tank 8 spacings wider and 10 taller than it, the fluid settled
-#       around it for 0.3 s; DURATION default 0.2 s, a row every 2 ms. key=value adds to the
+#       around it for 0.3 s (cli_buoyancy's scene with cl); DURATION default 0.2 s. key=value adds to the
 #       carreau_yasuda block (cy: eta=1e-4 pressure_solver=cg wall_pressure=mirror ...).
 #   held_sphere.py read OUT.h5 RS
 #       the fluid's force on the sphere over rho_f V g (rho_f the fluid's own density: its
@@ -30,7 +30,7 @@ if sys.argv[1] == "scene":
     print(f"""name: held_sphere_{model}_{RS:g}
 duration: {dur}
 dt: 0.001
-frame_rate: 500
+frame_rate: 1000
 fluid:
 {fl}
   spacing: {s}
