@@ -12,47 +12,14 @@
 #       standard deviation over the run's rows after t = 0, and the standard deviation of the
 #       fluid's mean vertical velocity over the frames (the column's breathing).
 import sys
-s = 0.005
-def geometry(RS):
-    R = RS * s
-    return R, round((2 * R + 8 * s) / s) * s, round((2 * R + 10 * s) / s) * s
+from body_sweep_scene import s, tank as geometry, tank_scene
 if sys.argv[1] == "scene":
     model, RS = sys.argv[2], float(sys.argv[3])
     dur = sys.argv[4] if len(sys.argv) > 4 and "=" not in sys.argv[4] else "0.2"
     kv = [a.replace("=", ": ") for a in sys.argv[4:] if "=" in a]
-    R, W, H = geometry(RS)
-    if model == "cy":
-        fl = "  model: carreau_yasuda"
-        eff = "  carreau_yasuda: {" + ", ".join(["mu0: 3.8e-4", "mu_inf: 3.8e-4", "n: 1"] + kv) + "}"
-    else:
-        fl = "  model: clavet_stf"
-        eff = "  viscosity: {sigma: 2.0}\n  pressure: {k: 1000, k_near: 200}"
-    print(f"""name: held_sphere_{model}_{RS:g}
-duration: {dur}
-dt: 0.001
-frame_rate: 1000
-fluid:
-{fl}
-  spacing: {s}
-  density: 970
-  settle: 0.3
-  blocks:
-    - min: [{-W / 2}, {-W / 2}, 0.0]
-      max: [{W / 2}, {W / 2}, {H}]
-effects:
-  gravity: {{g: [0, 0, -9.81]}}
-{eff}
-container:
-  size: [{W}, {W}, {H + 0.1}]
-  wall: 0.01
-  friction: 0.0
-  stick: false
-bodies:
-  - name: ball
-    shape: sphere
-    radius: {R}
-    motion: kinematic
-    position: [0, 0, {H / 2}]""")
+    print(tank_scene(f"held_sphere_{model}_{RS:g}", model, RS, dur, 1000, lambda R, H: H + 0.1,
+                     lambda R, W, H: f"    shape: sphere\n    radius: {R}\n    motion: kinematic\n"
+                                     f"    position: [0, 0, {H / 2}]", kv))
 else:
     import h5py, numpy as np
     f = h5py.File(sys.argv[2], "r")
