@@ -496,6 +496,17 @@ static void test_effects_off(void)
     kmax = 0;
     for (int i = 0; i < stf_fluid_count(c); i++) kmax = k[i] > kmax ? k[i] : kmax;
     CHECK(kmax > 0, "k_hist = 1e4: no history stiffness");
+    /* ... and with no thickened spring the section 3.3 stage leaves every particle as it is
+       (the liquid's wall is the collision stage's): the run without the stage is the same
+       bit for bit */
+    stf_fluid *nostick = drop_scene(all & ~(unsigned)STF_EFFECT_BOUNDARY_STICK, 0.0);
+    if (nostick) {
+        run(nostick, 300, 1e-3);
+        CHECK(stf_fluid_hash(nostick) == stf_fluid_hash(a),
+              "k_hist = 0: boundary stick on (%016llx) differs from off (%016llx)",
+              (unsigned long long)stf_fluid_hash(a), (unsigned long long)stf_fluid_hash(nostick));
+        stf_fluid_destroy(nostick);
+    }
 
     /* k_onset above every history stiffness the run reaches: no spring thickens and no wall
        sticks, so the run is again Clavet's model bit for bit; an onset at half the peak
