@@ -22,7 +22,7 @@ static int stick_one(stf_fluid *f, const collider *c, int i, double dt, double *
     const double *x = f->x + 3 * i;
     double *v = f->v + 3 * i;
     double band = f->def.spacing, nrm[3];
-    double kh = f->khist_mean ? f->khist_mean[i] : 0.0;
+    double kh = f->khist_mean[i];
     if (!(kh > 0)) return 0; /* liquid: the collision stage's wall, nothing here */
     double d = stf_collider_sdf(c, x, nrm);
     if (d >= band) return 0;
@@ -31,7 +31,6 @@ static int stick_one(stf_fluid *f, const collider *c, int i, double dt, double *
     stf_collider_velocity_at(c, x, vb);
     for (int a = 0; a < 3; a++) vrel[a] = v[a] - vb[a];
     double vn = vrel[0] * nrm[0] + vrel[1] * nrm[1] + vrel[2] * nrm[2];
-
     double old[3] = {v[0], v[1], v[2]};
     double vn_keep = vn < 0 ? 0.0 : vn; /* cancel the part going into the wall */
     for (int a = 0; a < 3; a++) {
@@ -44,6 +43,7 @@ static int stick_one(stf_fluid *f, const collider *c, int i, double dt, double *
 
 void stf_boundary_stick(stf_fluid *f, double dt)
 {
+    if (!f->khist_mean) return; /* no history: nothing thickens, every particle is liquid */
     int n = f->n;
     for (int k = 0; k < f->ncolliders; k++) {
         collider *c = &f->colliders[k];

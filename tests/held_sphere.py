@@ -12,7 +12,7 @@
 #       standard deviation over the run's rows after t = 0, and the standard deviation of the
 #       fluid's mean vertical velocity over the frames (the column's breathing).
 import sys
-from body_sweep_scene import s, tank as geometry, tank_scene
+from body_sweep_scene import s, tank, tank_scene
 if sys.argv[1] == "scene":
     model, RS = sys.argv[2], float(sys.argv[3])
     dur = sys.argv[4] if len(sys.argv) > 4 and "=" not in sys.argv[4] else "0.2"
@@ -23,7 +23,7 @@ if sys.argv[1] == "scene":
 else:
     import h5py, numpy as np
     f = h5py.File(sys.argv[2], "r")
-    RS = float(sys.argv[3]); R, W, H = geometry(RS); V = 4 / 3 * np.pi * R ** 3
+    RS = float(sys.argv[3]); R, W, H = tank(RS); V = 4 / 3 * np.pi * R ** 3
     z = f["Step#0/z"][:]
     level = np.sort(z)[-int(round((W / s) ** 2)):].mean() + s / 2
     rho = len(z) * f.attrs.get("particle_mass", 970 * s ** 3) / (W * W * level - V)
