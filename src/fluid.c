@@ -17,7 +17,7 @@ stf_fluid_def stf_default_fluid_def(void)
     d.effects = STF_EFFECT_GRAVITY | STF_EFFECT_VISCOSITY | STF_EFFECT_PRESSURE |
                 STF_EFFECT_SPRINGS | STF_EFFECT_HISTORY | STF_EFFECT_BOUNDARY_STICK;
     d.spacing = 0.01;
-    d.density = 1270.0; /* cornstarch in water, about 55% starch by mass */
+    d.density = 1270.0; /* cornstarch in water, about 57% starch by mass (grains of about 1.6 g/cm^3) */
     d.h = 0.0;
     d.gravity[2] = -9.81;
     d.sigma = 2.0;
