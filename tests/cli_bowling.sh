@@ -9,6 +9,7 @@
 #  - without history (bowling_ball_no_history.yaml): the ball is at least R deep within 0.3 s
 #    of contact (read from its own body series), never bounces and never rests on the surface;
 #  - the two differ as the paper says: with history the ball goes in less than half as deep.
+#  - tests/density_frames.py reads the run's density frame by frame as the metric does.
 # Args: STF_BINARY PROJECT_DIR
 set -u
 stf=$1; src=$2
@@ -52,5 +53,19 @@ want(nb["rest_on_surface"] == 0, "without history: no rest on the surface (%g s)
 want(h["penetration_depth"] < 0.5 * nb["penetration_depth"],
      "history halves the penetration at least: %.3f against %.3f m" % (h["penetration_depth"], nb["penetration_depth"]))
 sys.exit(1 if bad else 0)
+PY
+# tests/density_frames.py (the metric's estimator frame by frame, on 400 particles of the
+# bulk) agrees with the run's fluid.density_error_max, which reads every bulk particle: the
+# largest |mean - 1| over the frames after the first, within 0.2 percentage points (the
+# sample's standard error is about 0.1).
+/usr/bin/python3 "$src/tests/density_frames.py" hist.h5 >frames.txt || fail "density_frames.py failed"
+/usr/bin/python3 - hist.json frames.txt <<'PY' || rc=1
+import json, sys
+m = json.load(open(sys.argv[1]))["fluid"]["density_error_max"]
+rows = [l.split() for l in open(sys.argv[2]).read().splitlines()[1:]]
+worst = max(abs(float(e)) for t, e in rows[1:])
+ok = abs(worst - m) <= 0.002
+print(("ok:   " if ok else "FAIL: ") + "density_frames.py's largest frame %.4f against density_error_max %.4f (%d frames)" % (worst, m, len(rows)))
+sys.exit(0 if ok else 1)
 PY
 exit $rc
