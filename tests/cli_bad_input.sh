@@ -179,6 +179,12 @@ expect_bad set_mass0 '--set bodies\.0\.mass=0' 'bodies\.0\.mass: ' '> 0' -- \
     "$STF" run "$BASE" -o out.h5 --quiet --set bodies.0.mass=0
 expect_bad set_outside '--set fluid\.blocks\.0\.max=' 'fluid\.blocks\.0: ' 'outside the container' -- \
     "$STF" run "$BASE" -o out.h5 --quiet --set 'fluid.blocks.0.max=[0.04, 0.04, 0.3]'
+# a body that overlaps a wall is refused, as is one under the floor (it would be thrown out
+# by the collisions, or fall for ever)
+expect_bad body_wall '--set bodies\.0\.position=' 'bodies\.0\.position: ' "overlaps the container's walls" -- \
+    "$STF" run "$BASE" -o out.h5 --quiet --set 'bodies.0.position=[0.0, 0.04, 0.1]'
+expect_bad body_floor '--set bodies\.0\.position=' 'bodies\.0\.position: ' "under the container's floor" -- \
+    "$STF" run "$BASE" -o out.h5 --quiet --set 'bodies.0.position=[0.0, 0.0, -0.5]'
 expect_bad unset_missing 'effects\.nothing' -- \
     "$STF" run "$BASE" -o out.h5 --quiet --unset effects.nothing
 expect_bad bad_flag '--bogus' -- \

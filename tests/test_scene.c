@@ -67,11 +67,11 @@ static const char *const full_scene =
     "    shape: capsule\n"                                       /* 52 */
     "    radius: 0.01\n"                                         /* 53 */
     "    length: 0.2\n"                                          /* 54 */
-    "    mass: 0.1\n"                                            /* 55 */
+    "    motion: static\n"                                       /* 55 */
     "  - name: gem\n"                                            /* 56 */
     "    shape: convex\n"                                        /* 57 */
     "    points: [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]\n" /* 58 */
-    "    mass: 1\n"                                              /* 59 */
+    "    motion: static\n"                                       /* 59 */
     "expect:\n"                                                  /* 60 */
     "  bounces: \">= 2\"\n"                                      /* 61 */
     "  ball.sink_time: \"<1.5\"\n"                               /* 62 */

@@ -221,9 +221,12 @@ static int write_header(stf_h5 *h, const stf_sim *sim, double duration)
     for (int k = 0; k < sc->nbodies; k++) {
         const stf_body_def *b = &sc->bodies[k];
         char key[128];
-        double hh = b->shape.shape == STF_SHAPE_BOX ? b->shape.half[2]
-                    : b->shape.shape == STF_SHAPE_SPHERE ? b->shape.radius
-                                                         : b->shape.radius + b->shape.half_length;
+        /* R of the metrics: a sphere's radius, otherwise the half height as placed upright
+           (a capsule's ends are rounded: radius + half length; a cylinder's are flat) */
+        double hh = b->shape.shape == STF_SHAPE_BOX        ? b->shape.half[2]
+                    : b->shape.shape == STF_SHAPE_SPHERE   ? b->shape.radius
+                    : b->shape.shape == STF_SHAPE_CYLINDER ? b->shape.half_length
+                                                           : b->shape.radius + b->shape.half_length;
         snprintf(key, sizeof key, "body.%s.half_height", b->name);
         rc |= stf_h5_attr_double(h, key, hh);
         char shape[160] = ""; /* metrics: the reach below and above the centre follows q */

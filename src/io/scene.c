@@ -1229,6 +1229,88 @@ static int parse_condition(struct fy_node *v, stf_expectation *e)
     return end == t || *end || !isfinite(e->value) ? -1 : 0;
 }
 
+/* Half extents of a body along the world axes (m), from its shape and rotation; the bounding
+ * sphere for a convex hull. */
+static void body_extent(const stf_body_def *b, double e[3])
+{
+    const double *q = b->quaternion; /* w x y z */
+    double w = q[0], x = q[1], y = q[2], z = q[3];
+    double R[3][3] = {{1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)},
+                      {2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)},
+                      {2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)}};
+    const stf_collider_def *d = &b->shape;
+    for (int a = 0; a < 3; a++) {
+        double ax = fabs(R[a][2]); /* the local z axis: capsules' and cylinders' */
+        switch (d->shape) {
+        case STF_SHAPE_SPHERE: e[a] = d->radius; break;
+        case STF_SHAPE_BOX:
+            e[a] = fabs(R[a][0]) * d->half[0] + fabs(R[a][1]) * d->half[1] + ax * d->half[2];
+            break;
+        case STF_SHAPE_CAPSULE: e[a] = ax * d->half_length + d->radius; break;
+        case STF_SHAPE_CYLINDER:
+            e[a] = ax * d->half_length + d->radius * sqrt(fmax(0.0, 1 - ax * ax));
+            break;
+        default: {
+            double inr, bound;
+            e[a] = stf_collider_extent(d, &inr, &bound) == 0 ? bound : 0.0;
+        }
+        }
+    }
+}
+
+/* A dynamic body must start clear of the container's walls and floor: one that overlaps
+ * them is thrown out by the collision stage, and one outside falls for ever. Above the walls'
+ * top (a ball thrown in from above) it may reach past their line while it clears their top
+ * edge (by its bounding radius). Static and kinematic bodies (a ramp set into the floor) are
+ * not checked. */
+static int check_bodies_inside(loader *L)
+{
+    const stf_container_def *c = &L->s->container;
+    if (!c->present || L->s->fluid.periodic[0] > 0 || L->s->fluid.periodic[1] > 0) return 0;
+    double lo[3], hi[3];
+    for (int a = 0; a < 2; a++) {
+        lo[a] = c->position[a] - c->size[a] / 2;
+        hi[a] = c->position[a] + c->size[a] / 2;
+    }
+    lo[2] = c->position[2];
+    hi[2] = c->position[2] + c->size[2];
+    for (int i = 0; i < L->s->nbodies; i++) {
+        const stf_body_def *b = &L->s->bodies[i];
+        if (b->motion != STF_MOTION_DYNAMIC) continue; /* a fixed ramp may sit in the floor */
+        double e[3];
+        body_extent(b, e);
+        const double *p = b->position;
+        double r = fmax(e[0], fmax(e[1], e[2]));  /* for the distance to a wall's top edge */
+        double dz = p[2] > hi[2] ? p[2] - hi[2] : 0.0; /* above the walls' top */
+        int inside = p[0] > lo[0] && p[0] < hi[0] && p[1] > lo[1] && p[1] < hi[1];
+        const char *why = NULL;
+        if (!inside) why = "lies outside the container";
+        else if (p[2] - e[2] < lo[2]) why = "reaches under the container's floor";
+        else
+            for (int a = 0; a < 2 && !why; a++) {
+                double gap[2] = {p[a] - lo[a], hi[a] - p[a]};
+                for (int k = 0; k < 2 && !why; k++) {
+                    double reach = dz > 0 ? r : e[a]; /* past the top: the edge, by distance */
+                    if (sqrt(gap[k] * gap[k] + dz * dz) < reach && (dz > 0 || gap[k] < e[a]))
+                        why = "overlaps the container's walls";
+                }
+            }
+        if (!why) continue;
+        struct fy_node *bodies =
+            fy_node_mapping_lookup_by_string(fy_document_root(L->fyd), "bodies", FY_NT);
+        struct fy_node *item = fy_node_sequence_get_by_index(bodies, i);
+        struct fy_node *pos = fy_node_mapping_lookup_by_string(item, "position", FY_NT);
+        char path[64], what[512];
+        snprintf(path, sizeof path, "bodies.%d.position", i);
+        snprintf(what, sizeof what,
+                 "the body '%s' %s (its extent %.3g, %.3g, %.3g m about [%.3g, %.3g, %.3g]; "
+                 "the container's inside x %.3g..%.3g, y %.3g..%.3g, z from %.3g)",
+                 b->name, why, e[0], e[1], e[2], p[0], p[1], p[2], lo[0], hi[0], lo[1], hi[1], lo[2]);
+        return fail(L, pos ? pos : item, item, path, "%s", what);
+    }
+    return 0;
+}
+
 static int parse_expect(loader *L, const mapv *top)
 {
     struct fy_node *k, *v = lookup(top, "expect", &k);
@@ -1351,6 +1433,7 @@ static int parse_scene(loader *L)
     s->fluid = stf_default_fluid_def();
     if (parse_fluid(L, &top) || parse_effects(L, &top) || check_fluid(L, 1) ||
         parse_container(L, &top) || check_blocks_inside(L) || parse_bodies(L, &top) ||
+        check_bodies_inside(L) ||
         parse_expect(L, &top))
         return SCENE_BAD;
     if (s->nbodies > 0 && (s->fluid.periodic[0] > 0 || s->fluid.periodic[1] > 0))
