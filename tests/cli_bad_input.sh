@@ -185,6 +185,10 @@ expect_bad body_wall '--set bodies\.0\.position=' 'bodies\.0\.position: ' "overl
     "$STF" run "$BASE" -o out.h5 --quiet --set 'bodies.0.position=[0.0, 0.04, 0.1]'
 expect_bad body_floor '--set bodies\.0\.position=' 'bodies\.0\.position: ' "under the container's floor" -- \
     "$STF" run "$BASE" -o out.h5 --quiet --set 'bodies.0.position=[0.0, 0.0, -0.5]'
+# --set material= chooses the material (it is merged before the other overrides): a missing
+# one is refused, not ignored
+expect_bad set_material '--set material=nosuch' 'material: cannot read' -- \
+    "$STF" run "$BASE" -o out.h5 --quiet --set material=nosuch
 expect_bad unset_missing 'effects\.nothing' -- \
     "$STF" run "$BASE" -o out.h5 --quiet --unset effects.nothing
 expect_bad bad_flag '--bogus' -- \

@@ -1854,8 +1854,14 @@ static int load(loader *L, const char *text)
     stf_scene *s = L->s;
     L->fyd = parse_text(L, text);
     if (!L->fyd) return SCENE_BAD;
+    /* --set material=NAME / --unset material choose the material before it is merged;
+       every other override then applies over the merged scene */
+    for (int i = 0; i < L->nov; i++)
+        if (L->ov[i].key && !strcmp(L->ov[i].key, "material") && apply_override(L, i))
+            return SCENE_BAD;
     if (merge_material(L)) return SCENE_BAD;
     for (int i = 0; i < L->nov; i++) {
+        if (L->ov[i].key && !strcmp(L->ov[i].key, "material")) continue;
         if (apply_override(L, i)) return SCENE_BAD;
     }
     int rc = parse_scene(L);
