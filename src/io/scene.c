@@ -955,18 +955,24 @@ static int parse_container(loader *L, const mapv *top)
     return parse_vibration(L, &m, c->motion, &c->vibration);
 }
 
-/* Every block must start inside the container's inner box. */
-static int check_blocks_inside(loader *L)
+/* The container's inner box: lo, hi (m); z from the floor to the walls' top. */
+static void container_inside(const stf_container_def *c, double lo[3], double hi[3])
 {
-    const stf_container_def *c = &L->s->container;
-    if (!c->present) return 0;
-    double lo[3], hi[3];
     for (int a = 0; a < 2; a++) {
         lo[a] = c->position[a] - c->size[a] / 2;
         hi[a] = c->position[a] + c->size[a] / 2;
     }
     lo[2] = c->position[2];
     hi[2] = c->position[2] + c->size[2];
+}
+
+/* Every block must start inside the container's inner box. */
+static int check_blocks_inside(loader *L)
+{
+    const stf_container_def *c = &L->s->container;
+    if (!c->present) return 0;
+    double lo[3], hi[3];
+    container_inside(c, lo, hi);
     for (int i = 0; i < L->s->nblocks; i++) {
         const stf_block *b = &L->s->blocks[i];
         int in = 1;
@@ -1268,12 +1274,7 @@ static int check_bodies_inside(loader *L)
     const stf_container_def *c = &L->s->container;
     if (!c->present || L->s->fluid.periodic[0] > 0 || L->s->fluid.periodic[1] > 0) return 0;
     double lo[3], hi[3];
-    for (int a = 0; a < 2; a++) {
-        lo[a] = c->position[a] - c->size[a] / 2;
-        hi[a] = c->position[a] + c->size[a] / 2;
-    }
-    lo[2] = c->position[2];
-    hi[2] = c->position[2] + c->size[2];
+    container_inside(c, lo, hi);
     for (int i = 0; i < L->s->nbodies; i++) {
         const stf_body_def *b = &L->s->bodies[i];
         if (b->motion != STF_MOTION_DYNAMIC) continue; /* a fixed ramp may sit in the floor */
