@@ -227,12 +227,19 @@ int stf_mesh_build(const stf_collider_def *def, stf_mesh *m)
     }
 }
 
-void stf_mesh_place(const stf_mesh *m, const double pos[3], const double quat[4], float *out)
+void stf_quat_matrix(const double quat[4], double R[9])
 {
     double w = quat[0], x = quat[1], y = quat[2], z = quat[3];
-    const double R[9] = {1 - 2 * (y * y + z * z), 2 * (x * y - w * z),     2 * (x * z + w * y),
+    const double M[9] = {1 - 2 * (y * y + z * z), 2 * (x * y - w * z),     2 * (x * z + w * y),
                          2 * (x * y + w * z),     1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
                          2 * (x * z - w * y),     2 * (y * z + w * x),     1 - 2 * (x * x + y * y)};
+    for (int k = 0; k < 9; k++) R[k] = M[k];
+}
+
+void stf_mesh_place(const stf_mesh *m, const double pos[3], const double quat[4], float *out)
+{
+    double R[9];
+    stf_quat_matrix(quat, R);
     for (int i = 0; i < m->nv; i++) {
         const double *v = m->v + 3 * i;
         for (int c = 0; c < 3; c++)

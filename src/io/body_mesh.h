@@ -28,6 +28,8 @@ int stf_mesh_build(const stf_collider_def *def, stf_mesh *m);
 void stf_mesh_free(stf_mesh *m);
 
 /* out (3*nv) = the vertices placed at pos with orientation quat (w, x, y, z, unit). */
+/* The rotation (3x3, row-major, body -> world) of a unit quaternion (w, x, y, z). */
+void stf_quat_matrix(const double quat[4], double R[9]);
 void stf_mesh_place(const stf_mesh *m, const double pos[3], const double quat[4], float *out);
 
 #ifdef __cplusplus

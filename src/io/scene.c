@@ -6,6 +6,7 @@
  * offending node (such nodes carry the override's index as libfyaml node meta data).
  */
 #define _POSIX_C_SOURCE 200809L
+#include "body_mesh.h"
 #include "metrics.h"
 #include "stf_io.h"
 
@@ -1239,18 +1240,15 @@ static int parse_condition(struct fy_node *v, stf_expectation *e)
  * sphere for a convex hull. */
 static void body_extent(const stf_body_def *b, double e[3])
 {
-    const double *q = b->quaternion; /* w x y z */
-    double w = q[0], x = q[1], y = q[2], z = q[3];
-    double R[3][3] = {{1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)},
-                      {2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)},
-                      {2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)}};
+    double R[9];
+    stf_quat_matrix(b->quaternion, R);
     const stf_collider_def *d = &b->shape;
     for (int a = 0; a < 3; a++) {
-        double ax = fabs(R[a][2]); /* the local z axis: capsules' and cylinders' */
+        double ax = fabs(R[3 * a + 2]); /* the local z axis: capsules' and cylinders' */
         switch (d->shape) {
         case STF_SHAPE_SPHERE: e[a] = d->radius; break;
         case STF_SHAPE_BOX:
-            e[a] = fabs(R[a][0]) * d->half[0] + fabs(R[a][1]) * d->half[1] + ax * d->half[2];
+            e[a] = fabs(R[3 * a]) * d->half[0] + fabs(R[3 * a + 1]) * d->half[1] + ax * d->half[2];
             break;
         case STF_SHAPE_CAPSULE: e[a] = ax * d->half_length + d->radius; break;
         case STF_SHAPE_CYLINDER:
@@ -1289,12 +1287,9 @@ static int check_bodies_inside(loader *L)
         else if (p[2] - e[2] < lo[2]) why = "reaches under the container's floor";
         else
             for (int a = 0; a < 2 && !why; a++) {
-                double gap[2] = {p[a] - lo[a], hi[a] - p[a]};
-                for (int k = 0; k < 2 && !why; k++) {
-                    double reach = dz > 0 ? r : e[a]; /* past the top: the edge, by distance */
-                    if (sqrt(gap[k] * gap[k] + dz * dz) < reach && (dz > 0 || gap[k] < e[a]))
-                        why = "overlaps the container's walls";
-                }
+                /* the nearer wall of the pair; above the top, the distance to its edge */
+                double gap = fmin(p[a] - lo[a], hi[a] - p[a]);
+                if (dz > 0 ? hypot(gap, dz) < r : gap < e[a]) why = "overlaps the container's walls";
             }
         if (!why) continue;
         struct fy_node *bodies =
@@ -1857,13 +1852,12 @@ static int load(loader *L, const char *text)
     if (!L->fyd) return SCENE_BAD;
     /* --set material=NAME / --unset material choose the material before it is merged;
        every other override then applies over the merged scene */
-    for (int i = 0; i < L->nov; i++)
-        if (L->ov[i].key && !strcmp(L->ov[i].key, "material") && apply_override(L, i))
-            return SCENE_BAD;
-    if (merge_material(L)) return SCENE_BAD;
-    for (int i = 0; i < L->nov; i++) {
-        if (L->ov[i].key && !strcmp(L->ov[i].key, "material")) continue;
-        if (apply_override(L, i)) return SCENE_BAD;
+    for (int pass = 0; pass < 2; pass++) {
+        if (pass == 1 && merge_material(L)) return SCENE_BAD;
+        for (int i = 0; i < L->nov; i++) {
+            int material = L->ov[i].key && !strcmp(L->ov[i].key, "material");
+            if (material == (pass == 0) && apply_override(L, i)) return SCENE_BAD;
+        }
     }
     int rc = parse_scene(L);
     if (rc) return rc;
