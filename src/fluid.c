@@ -221,6 +221,10 @@ int stf_fluid_check_def(const stf_fluid_def *d, char *err, size_t errlen, const 
             d->history_velocity != STF_HISTORY_SMOOTHED)
             BAD("history_velocity", "history_velocity: must be particle or smoothed (got %d)",
                 d->history_velocity);
+        if (!(d->history_smoothing >= 0 && isfinite(d->history_smoothing)))
+            BAD("history_smoothing", "smoothing: must be >= 0 m (got %g)", d->history_smoothing);
+        if (d->history_smoothing > 0 && d->history_velocity != STF_HISTORY_SMOOTHED)
+            BAD("history_smoothing", "smoothing: needs velocity smoothed");
         if (d->history_mode != STF_HISTORY_WINDOW && d->history_mode != STF_HISTORY_FULL &&
             d->history_mode != STF_HISTORY_SOE)
             BAD("history_mode", "history_mode: must be window, full or soe (got %d)",
@@ -345,6 +349,8 @@ void stf_fluid_destroy(stf_fluid *f)
     free(f->rho);
     free(f->rho_near);
     free(f->khist_mean);
+    free(f->field_w);
+    free(f->field_v);
     stf_grid_free(&f->grid);
     if (f->gs) stf_gs_free(f->gs);
     free(f->gs);
@@ -705,7 +711,12 @@ int stf_fluid_step(stf_fluid *f, double dt)
     if (has(f, STF_EFFECT_HISTORY) && f->def.k_hist > 0) { /* k_hist = 0: D is never read */
         TIMED(STAGE_HISTORY, {
             const double *vh = f->v;
-            if (f->def.history_velocity == STF_HISTORY_SMOOTHED) {
+            if (f->def.history_velocity == STF_HISTORY_SMOOTHED && f->def.history_smoothing > 0) {
+                int rc = stf_fluid_field_velocity(f, f->dx);
+                if (rc == -1) return -1;
+                if (rc != 0) goto oom;
+                vh = f->dx;
+            } else if (f->def.history_velocity == STF_HISTORY_SMOOTHED) {
                 stf_fluid_smoothed_velocity(f, f->dx);
                 vh = f->dx;
             }
@@ -891,7 +902,7 @@ int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
         "tension: %s\nrest: %s\nrest_density: %.9g  # kernel sum\nrest_near_density: %.9g  # kernel sum\n"
         "k_min: %.9g  # 1/s^2\nyield_ratio: %.9g\nplasticity: %.9g  # 1/s\nliquid_plasticity: %.9g  # 1/s\n"
         "relaxation: %s\niterations: %d\nspring_damping: %.9g  # s\nq: %.9g\n"
-        "history_mode: %s\nhistory_velocity: %s\nhistory_steps: %d  # at the first step (with memory: memory / dt)\n"
+        "history_mode: %s\nhistory_velocity: %s\nhistory_smoothing: %.9g  # m (0: the kernel's neighbours)\nhistory_steps: %d  # at the first step (with memory: memory / dt)\n"
         "memory: %.9g  # s (0: history_steps as given)\nk_hist: %.9g  # 1/s^2 per m/s^q\n"
         "reference_spacing: %.9g  # m\nk_onset: %.9g  # 1/s^2\n"
         "stick: %.9g  # 1/s\n",
@@ -904,7 +915,7 @@ int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
         d->history_mode == STF_HISTORY_FULL  ? "full"
         : d->history_mode == STF_HISTORY_SOE ? "soe"
                                              : "window",
-        d->history_velocity == STF_HISTORY_SMOOTHED ? "smoothed" : "particle",
+        d->history_velocity == STF_HISTORY_SMOOTHED ? "smoothed" : "particle", d->history_smoothing,
         stf_fluid_history_steps(f), d->memory,
         d->k_hist, d->reference_spacing, d->k_onset, d->stick);
     if (projects(f) && w >= 0 && (size_t)w < len)

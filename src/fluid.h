@@ -46,6 +46,8 @@ struct stf_fluid {
     stf_history hist;    /* allocated only with the history effect */
     double *rho, *rho_near; /* n each, pressure effect only */
     float *khist_mean;      /* n: mean history stiffness of a particle's springs, 1/s^2 */
+    double *field_w, *field_v; /* history.smoothing's lattice: weights and velocity sums */
+    size_t field_cap;          /* nodes allocated */
 
     /* Solid walls as a half-space of lattice particles (pressure.c): kernel density, near
        density, the normal sums of (1-q) and (1-q)^2, and the second moments of (1-q) normal
@@ -79,6 +81,11 @@ void stf_boundary_stick(stf_fluid *f, double dt);                /* boundary.c *
  * kept where the neighbourhood is symmetric (the bulk); a particle's own grid-scale jitter
  * is averaged out. Into out (3n). */
 void stf_fluid_smoothed_velocity(const stf_fluid *f, double *out);
+
+/* history.smoothing > 0: the velocity field averaged over that length, into out (3n)
+ * (src/velocity_field.c). Returns 0; -1 with f->failure written when the fluid spans more
+ * than 1e8 cells; -2 when out of memory. */
+int stf_fluid_field_velocity(stf_fluid *f, double *out);
 
 /* Checks every particle after a stage named effect; on a blow-up or NaN writes the failure
  * message and returns -1. */

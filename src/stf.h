@@ -253,6 +253,13 @@ typedef struct stf_fluid_def {
                               k = k_min + max(0, kh - k_onset). 0: Eq. 6 as written */
     int history_mode;      /* enum stf_history_mode */
     int history_velocity;  /* enum stf_history_velocity (default particle: Eq. 3 as written) */
+    double history_smoothing; /* m (>= 0; scene key history.smoothing; ours): with velocity
+                              smoothed, > 0 averages the velocity field over this length (a
+                              lattice of this cell, trilinear spread and gather:
+                              src/velocity_field.c) instead of over the kernel's neighbours,
+                              so the band in which jammed fluid shears, and the speed at which
+                              a body creeps through it, do not shrink with the spacing.
+                              0: the kernel's neighbours */
     int terms;             /* soe mode: number of exponentials K, 1..64 (default 16) */
     /* boundary treatment (section 3.3) */
     double stick;          /* 1/s: tangential velocity at a wall decays at the rate

@@ -11,13 +11,28 @@
  *                relaxation is cut ten times.
  *  through a step  a pool at rest with history particle and smoothed: the smoothed pool's
  *                history stiffness stays lower (orderings between variants, the same
- *                lattice and seed). */
+ *                lattice and seed).
+ *
+ * history.smoothing L > 0 (src/velocity_field.c, the field averaged over L on a lattice of
+ * cell L), on the same lattice with L = 3 spacings (commensurate: every node of the bulk
+ * gathers the same weights):
+ *  uniform and linear fields come back unchanged in the bulk (particles 2 L from the block's
+ *                faces), to round-off;
+ *  checkerboard  is cut below 1% of its amplitude (the tent over 6 spacings cancels it);
+ *  a shear step  v_x = U above a plane: the largest difference between neighbours one
+ *                spacing apart across it falls as 1/L: doubling L divides it by 1.5 to 2.5
+ *                (2 for a continuous filter; the exact factor depends on where the plane
+ *                sits between the nodes), so the band in which the history sees the shear
+ *                is L wide, not a spacing;
+ *  threads       the result is bit-identical on 1 and 2 threads. */
 #define _POSIX_C_SOURCE 200809L
 #include "stf.h"
 #include "fluid.h"
 #include "test_util.h"
 
+#include <omp.h>
 #include <stdlib.h>
+#include <string.h>
 
 static char err[512];
 
@@ -142,9 +157,91 @@ static double resting_khist(int velocity)
     return mean / n;
 }
 
+/* The lattice of lattice() with velocity kind: 0 uniform V0, 1 linear, 2 checkerboard of 1e-3,
+ * 3 a shear step v_x = 0.1 m/s above the plane z = 6.5 spacings. */
+static stf_fluid *field_lattice(double s, double L, int kind)
+{
+    stf_fluid *f = lattice(s, 0.0);
+    if (!f) return NULL;
+    f->def.history_smoothing = L;
+    int n = stf_fluid_count(f);
+    for (int p = 0; p < n; p++) {
+        int i = p % N, j = (p / N) % N, k = p / (N * N);
+        double *v = f->v + 3 * p, sg = ((i + j + k) & 1) ? -1.0 : 1.0;
+        if (kind == 0) v[0] = 0.05, v[1] = -0.02, v[2] = 0.01;
+        if (kind == 2) v[0] = 1e-3 * sg, v[1] = v[2] = 0;
+        if (kind == 3) v[0] = k > 6 ? 0.1 : 0.0, v[1] = v[2] = 0;
+    }
+    return f;
+}
+
+static void test_field(void)
+{
+    double s = 0.01, L = 3 * s;
+    int reach = 6; /* 2 L */
+    for (int kind = 0; kind < 3; kind++) {
+        stf_fluid *f = field_lattice(s, L, kind);
+        if (!f) return;
+        int n = stf_fluid_count(f);
+        double *out = malloc(3 * (size_t)n * sizeof *out), worst = 0;
+        CHECK(stf_fluid_field_velocity(f, out) == 0, "field velocity failed");
+        for (int p = 0; p < n; p++) {
+            if (!bulk(p, reach)) continue;
+            for (int a = 0; a < 3; a++)
+                worst = fmax(worst, fabs(out[3 * p + a] - (kind == 2 ? 0.0 : f->v[3 * p + a])));
+        }
+        if (kind < 2)
+            CHECK(worst <= 1e-15, "%s field through smoothing %g m: off by %.3g m/s",
+                  kind ? "a linear" : "a uniform", L, worst);
+        else
+            CHECK(worst <= 1e-5, "checkerboard of 1e-3 m/s through smoothing %g m: %.3g m/s left",
+                  L, worst);
+        free(out);
+        stf_fluid_destroy(f);
+    }
+    /* the shear step: the largest neighbour difference across the plane in the bulk */
+    double jump[2];
+    for (int c = 0; c < 2; c++) {
+        stf_fluid *f = field_lattice(s, (c + 1) * L, 3);
+        if (!f) return;
+        int n = stf_fluid_count(f);
+        double *out = malloc(3 * (size_t)n * sizeof *out);
+        CHECK(stf_fluid_field_velocity(f, out) == 0, "field velocity failed");
+        jump[c] = 0;
+        for (int p = 0; p + N * N < n; p++) {
+            int i = p % N, j = (p / N) % N;
+            if (i < 3 || j < 3 || i >= N - 3 || j >= N - 3) continue;
+            jump[c] = fmax(jump[c], fabs(out[3 * (p + N * N)] - out[3 * p]));
+        }
+        free(out);
+        stf_fluid_destroy(f);
+    }
+    printf("shear step of 0.1 m/s: largest neighbour difference %.4g m/s at L = %g m, %.4g at %g m\n",
+           jump[0], L, jump[1], 2 * L);
+    CHECK(jump[0] < 0.1 * 0.5, "smoothing %g m leaves a jump of %.3g m/s of 0.1", L, jump[0]);
+    CHECK(jump[0] / jump[1] > 1.5 && jump[0] / jump[1] < 2.5, "the band does not widen with L: %.4g / %.4g",
+          jump[0], jump[1]);
+    /* one thread and two: the same bits */
+    stf_fluid *f = field_lattice(s, L, 1);
+    if (!f) return;
+    int n = stf_fluid_count(f);
+    double *a = malloc(3 * (size_t)n * sizeof *a), *b = malloc(3 * (size_t)n * sizeof *b);
+    int nt = omp_get_max_threads();
+    omp_set_num_threads(1);
+    CHECK(stf_fluid_field_velocity(f, a) == 0, "field velocity failed");
+    omp_set_num_threads(2);
+    CHECK(stf_fluid_field_velocity(f, b) == 0, "field velocity failed");
+    omp_set_num_threads(nt);
+    CHECK(memcmp(a, b, 3 * (size_t)n * sizeof *a) == 0, "1 and 2 threads differ");
+    free(a);
+    free(b);
+    stf_fluid_destroy(f);
+}
+
 int main(void)
 {
     test_lattice();
+    test_field();
     double kp = resting_khist(STF_HISTORY_PARTICLE), ks = resting_khist(STF_HISTORY_SMOOTHED);
     printf("resting pool, mean history stiffness above the onset after 0.4 s: particle %.4g, "
            "smoothed %.4g 1/s^2\n", kp, ks);

@@ -197,7 +197,7 @@ static void test_body(const char *path)
         {1.5, {0, 0, -0.04}, {0, 0, 0}},  /* creeps (slow: still resting) to z = 0.11 */
         {2.0, {0, 0, -0.2}, {0, 0, 0}},   /* sinks: top below S when z < -0.045, t > 2.775 */
     };
-    const double x0[3] = {0.1, 0.1, 0.3};
+    const double x0[3] = {0.05, 0.1, 0.3}; /* over the layer (x, y in [0, 0.2] m) throughout */
     write_path(h, "ball", x0, ph, 8, 3.0);
     stf_metrics m;
     close_and_measure(h, path, &m);
@@ -231,7 +231,7 @@ static void test_plunge(const char *path)
         {0.3, {0, 0, -0.02}, {0, 0, 0}},   /* slow, 1 s, deep: depth 0.13 to 0.15 > R */
         {1.3, {0, 0, -0.3}, {0, 0, 0}},    /* sinks: top below S when z < -0.045, t > 1.4667 */
     };
-    const double x0[3] = {0.0, 0.1, 0.2};
+    const double x0[3] = {-0.01, 0.1, 0.2}; /* over the layer from t = 0.01 s on */
     write_path(h, "ball", x0, ph, 4, 2.5);
     stf_metrics m;
     close_and_measure(h, path, &m);
@@ -248,6 +248,47 @@ static void test_plunge(const char *path)
     CHECK(b->rest_on_surface == 0, "rest_on_surface %g deep in the fluid", b->rest_on_surface);
     CHECK(b->rest_time != b->rest_time, "rest_time %g", b->rest_time);
     CHECK_NEAR(b->sink_time, 1.47, 1e-9, "sink_time of the plunge");
+}
+
+/* The ball of test_body's path, moved 0.25 m along x: it falls, bounces, rolls, rests and goes
+ * under the layer's height beside the layer (x from 0.3 to 0.4 m, the layer's extent is 0 to
+ * 0.2 m): none of it is contact, a bounce, a roll, a rest on the surface or sinking. Then the
+ * same path near the layer's edge (x0 = 0.157 m: it rolls from there at 0.3 s and leaves the
+ * layer between the samples at 0.38 s, x = 0.197 m, and 0.39 s, x = 0.202 m): contact at
+ * 0.10 s, the bounce, 4 cm of roll (the 8 intervals over the layer of the 10 rolled), and no
+ * rest or sinking beside it. */
+static void test_beside(const char *path)
+{
+    const path_phase ph[] = {
+        {0.0, {0, 0, -1.5}, {0, 0, 0}}, {0.1, {0, 0, -0.3}, {0, 0, 0}},
+        {0.2, {0, 0, 0.3}, {0, 0, 0}},  {0.3, {0.5, 0, -0.05}, {0, 5, 0}},
+        {0.4, {0.5, 0, -0.15}, {0, 0, 0}}, {0.5, {0, 0, 0}, {0, 0, 0}},
+        {1.5, {0, 0, -0.04}, {0, 0, 0}}, {2.0, {0, 0, -0.2}, {0, 0, 0}},
+    };
+    for (int k = 0; k < 2; k++) {
+        stf_h5 *h = body_over_layer(path, "ball", 0.1, 0.01);
+        if (!h) return;
+        const double x0[3] = {k ? 0.157 : 0.3, 0.1, 0.3};
+        write_path(h, "ball", x0, ph, 8, 3.0);
+        stf_metrics m;
+        close_and_measure(h, path, &m);
+        CHECK(m.nbodies == 1, "bodies %d", m.nbodies);
+        if (m.nbodies != 1) return;
+        const stf_body_metrics *b = &m.bodies[0];
+        if (k == 0) {
+            CHECK(isnan(b->first_contact_time) && b->penetration_depth == 0 && b->bounces == 0 &&
+                      b->roll_distance == 0 && b->rest_on_surface == 0 && isnan(b->sink_time),
+                  "a ball beside the layer: contact %g, penetration %g, bounces %d, roll %g, "
+                  "rest %g, sink %g", b->first_contact_time, b->penetration_depth, b->bounces,
+                  b->roll_distance, b->rest_on_surface, b->sink_time);
+        } else {
+            CHECK_NEAR(b->first_contact_time, 0.10, 1e-9, "first_contact_time over the edge");
+            CHECK(b->bounces == 1, "bounces over the edge %d", b->bounces);
+            CHECK_NEAR(b->roll_distance, 0.04, 1e-9, "roll_distance: over the layer only");
+            CHECK(b->rest_on_surface == 0 && isnan(b->sink_time),
+                  "rest %g, sink %g beside the layer", b->rest_on_surface, b->sink_time);
+        }
+    }
 }
 
 /* A body that touches and rises clearly (a bounce) in the run's last sample: the bounce is
@@ -358,6 +399,7 @@ int main(void)
     test_plunge(path);
     test_bounce_at_end(path);
     test_turned_slab(path);
+    test_beside(path);
     test_no_fluid(path);
     test_far_particle(path);
     test_nan_body_json(path);

@@ -12,6 +12,7 @@ typedef struct run_geometry {
     double spacing, min_rise;
     int has_container;
     double lo[3], hi[3]; /* container inner box */
+    double pool_lo[2], pool_hi[2]; /* the fluid's horizontal extent at t = 0 (x, y), m */
 } run_geometry;
 
 static double attr_or(const stf_h5r *r, const char *name, double dflt)
@@ -87,6 +88,9 @@ static void body_metrics(const stf_h5r *r, const char *name, double surface,
     for (int i = 0; i < n; i++) {
         double reach = oriented ? shape_reach(&shape, qs + 4 * i) : R;
         depth[i] = surface - (p[3 * i + 2] - reach); /* NaN without fluid: never in contact */
+        /* beside the fluid (the centre outside its extent at t = 0): not in it, not on it */
+        for (int a = 0; a < 2; a++)
+            if (!(p[3 * i + a] >= g->pool_lo[a] && p[3 * i + a] <= g->pool_hi[a])) depth[i] = NAN;
         if (contact < 0 && depth[i] > 0) contact = i;
     }
     if (contact < 0) goto done;
@@ -141,7 +145,7 @@ static void body_metrics(const stf_h5r *r, const char *name, double surface,
     if (best >= 0) b->rest_time = t[best];
     for (int i = best >= 0 ? best : contact; i < n; i++) {
         double above = oriented ? shape_reach(&shape, qs + 4 * i) : R;
-        if (p[3 * i + 2] + above < surface) {
+        if (!isnan(depth[i]) && p[3 * i + 2] + above < surface) {
             b->sink_time = t[i];
             b->float_duration = t[i] - tc;
             break;
@@ -556,16 +560,27 @@ static int fluid_metrics(const stf_h5r *r, const run_geometry *g, stf_metrics *m
     return 0;
 }
 
-static double surface_of_first_frame(const stf_h5r *r, double spacing)
+/* The fluid's top at t = 0 (S), and its horizontal extent into g (both half a spacing past the
+ * outermost centres; NaN, and an empty extent, without particles). */
+static double surface_of_first_frame(const stf_h5r *r, run_geometry *g)
 {
+    double s = g->spacing;
+    g->pool_lo[0] = g->pool_lo[1] = INFINITY;
+    g->pool_hi[0] = g->pool_hi[1] = -INFINITY;
     int n = stf_h5r_frames(r) > 0 ? stf_h5r_frame_count(r, 0) : 0;
     if (n <= 0) return NAN;
     double *x = malloc((size_t)n * 3 * sizeof *x);
     double top = -INFINITY;
     if (x && stf_h5r_read_frame(r, 0, x, NULL) == 0)
-        for (int i = 0; i < n; i++) top = fmax(top, x[3 * i + 2]);
+        for (int i = 0; i < n; i++) {
+            top = fmax(top, x[3 * i + 2]);
+            for (int a = 0; a < 2; a++) {
+                g->pool_lo[a] = fmin(g->pool_lo[a], x[3 * i + a] - 0.5 * s);
+                g->pool_hi[a] = fmax(g->pool_hi[a], x[3 * i + a] + 0.5 * s);
+            }
+        }
     free(x);
-    return top + 0.5 * spacing;
+    return top + 0.5 * s;
 }
 
 int stf_metrics_compute(const char *path, stf_metrics *m, char *err, size_t errlen)
@@ -590,7 +605,7 @@ int stf_metrics_compute(const char *path, stf_metrics *m, char *err, size_t errl
     }
     int nf = stf_h5r_frames(r);
     m->time_end = nf > 0 ? stf_h5r_frame_time(r, nf - 1) : 0;
-    m->surface_height = surface_of_first_frame(r, g.spacing);
+    m->surface_height = surface_of_first_frame(r, &g);
     int nb = stf_h5r_body_count(r);
     for (int k = 0; k < nb && k < STF_METRICS_MAX_BODIES; k++)
         body_metrics(r, stf_h5r_body_name(r, k), m->surface_height, &g, &m->bodies[m->nbodies++]);

@@ -7,7 +7,10 @@
  * (centre z - its reach below the centre: with a "body.NAME.shape" attribute the shape's
  * support along -z at the sample's orientation, so a box or a cylinder lying on its side
  * counts from its true underside; else R). A body "on the surface" has depth <= R/2: at most
- * a quarter of a sphere's diameter in the fluid.
+ * a quarter of a sphere's diameter in the fluid. A sample whose centre is beside the fluid (its
+ * x or y outside the fluid's extent at t = 0, half a spacing past the outermost particles) has
+ * no depth: it is not in contact, on the surface, at rest on it or sunk (a ball on the floor
+ * beside a pool is none of these).
  * - first_contact_time: the first sample with depth > 0.
  * - penetration_depth: the largest depth within STF_PENETRATION_WINDOW (0.5 s) of contact.
  * - bounce: after contact, the centre rises by at least bounce_min_rise from a local minimum

@@ -479,6 +479,7 @@ static const struct def_key {
     {"k_onset", "effects.history.k_onset", NULL},
     {"history_mode", "effects.history.mode", NULL},
     {"history_velocity", "effects.history.velocity", NULL},
+    {"history_smoothing", "effects.history.smoothing", NULL},
     {"terms", "effects.history.terms", NULL},
     {"stick", "effects.boundary_stick.stick", NULL},
     {"cy.mu0", "effects.carreau_yasuda.mu0", NULL},
@@ -663,7 +664,8 @@ static int parse_history(loader *L, const mapv *h)
     if (rd) f->memory = 0; /* memory > 0 would override d */
     if (get_num(L, h, "k_hist", R_ANY, &f->k_hist) < 0 ||
         get_num(L, h, "reference_spacing", R_ANY, &f->reference_spacing) < 0 ||
-        get_num(L, h, "k_onset", R_ANY, &f->k_onset) < 0)
+        get_num(L, h, "k_onset", R_ANY, &f->k_onset) < 0 ||
+        get_num(L, h, "smoothing", R_ANY, &f->history_smoothing) < 0)
         return SCENE_BAD;
     if (get_choice(L, h, "mode", modes, &mode) < 0) return SCENE_BAD;
     if (has(h, "mode")) f->history_mode = mode; /* the order of enum stf_history_mode */
@@ -790,7 +792,7 @@ static const char *const pressure_keys[] = {"k", "k_near", "rest_density", "rest
                                             "eta", "solver", "wall_pressure", "min_iterations",
                                             "max_iterations", "warm_start", NULL};
 static const char *const springs_keys[] = {"k_min", "yield_ratio", "plasticity", "liquid_plasticity", "damping", NULL};
-static const char *const history_keys[] = {"q", "d", "memory", "k_hist", "mode", "reference_spacing", "terms", "k_onset", "velocity", NULL};
+static const char *const history_keys[] = {"q", "d", "memory", "k_hist", "mode", "reference_spacing", "terms", "k_onset", "velocity", "smoothing", NULL};
 static const char *const stick_keys[] = {"stick", NULL};
 static const char *const cy_keys[] = {"mu0", "mu_inf", "K", "alpha", "n", "eta",
                                       "min_pressure_iterations", "max_pressure_iterations",
