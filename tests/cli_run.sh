@@ -148,6 +148,16 @@ if run setq --set effects.history.q=0.3; then
     scene_text setq.h5 | grep -E >/dev/null 'q: *0\.3' || fail "--set effects.history.q=0.3 not in the stored scene"
 fi
 
+# 2b. `stf check`: an expectation "==" on time_end holds for the scene's duration (the time
+# is summed step by step; == is equal to 1e-9) and fails for a value a step away
+T=$(grep -E '^duration:' "$SCENE" | awk '{print $2}')
+DT=$(grep -E '^dt:' "$SCENE" | awk '{print $2}')
+"$STF" check "$SCENE" -o chk.h5 --quiet --threads 1 --set "expect.time_end=$T" >chk.out 2>&1 ||
+    fail "stf check with expect time_end == $T failed: $(tail -n 3 chk.out)"
+TN=$("$PY" -c "print($T - $DT)")
+"$STF" check "$SCENE" -o chk2.h5 --quiet --threads 1 --set "expect.time_end=$TN" >chk2.out 2>&1 &&
+    fail "stf check with expect time_end == $TN (a step short) passed"
+
 # 3. --unset switches an effect off
 if run nohist --unset effects.history; then
     check_h5 nohist.h5 || fail "nohist.h5 layout"

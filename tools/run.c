@@ -298,7 +298,9 @@ int cli_expectation_holds(const stf_expectation *e, const stf_metrics *m, double
     if (!strcmp(e->op, "<=")) return v <= e->value;
     if (!strcmp(e->op, ">")) return v > e->value;
     if (!strcmp(e->op, ">=")) return v >= e->value;
-    return v == e->value;
+    /* ==: equal to 1e-9 of the larger magnitude (at least 1e-9 absolute), so a time summed
+       step by step (10 s in 10,000 steps of 1 ms reads 9.9999999999998 s) equals its value */
+    return fabs(v - e->value) <= 1e-9 * fmax(1.0, fmax(fabs(v), fabs(e->value)));
 }
 
 /* Holds the scene's expect block against the metrics; prints one line each. */
