@@ -185,6 +185,19 @@ expect_bad body_wall '--set bodies\.0\.position=' 'bodies\.0\.position: ' "overl
     "$STF" run "$BASE" -o out.h5 --quiet --set 'bodies.0.position=[0.0, 0.04, 0.1]'
 expect_bad body_floor '--set bodies\.0\.position=' 'bodies\.0\.position: ' "under the container's floor" -- \
     "$STF" run "$BASE" -o out.h5 --quiet --set 'bodies.0.position=[0.0, 0.0, -0.5]'
+# two fluid blocks that share a volume are refused (their particles would sit on each other);
+# blocks that only touch are not
+mk blocks_overlap.yaml '/^      velocity: \[0.2, 0, -0.5\]/a\
+    - center: [0.0, 0.0, 0.085]\
+      radius: 0.01'
+L=$(line_of blocks_overlap.yaml '^    - center:')
+expect_bad blocks_overlap "blocks_overlap\\.yaml:$L:[0-9]+: fluid\\.blocks\\.1: overlaps fluid\\.blocks\\.0" -- \
+    "$STF" run blocks_overlap.yaml -o out.h5 --quiet
+mk blocks_touch.yaml '/^      velocity: \[0.2, 0, -0.5\]/a\
+    - center: [0.0, 0.0, 0.09]\
+      radius: 0.01'
+"$STF" run blocks_touch.yaml -o touch.h5 --quiet --duration 0.01 >touch.out 2>&1 ||
+    fail "two blocks that touch were refused: $(tail -n 2 touch.out)"
 # --set material= chooses the material (it is merged before the other overrides): a missing
 # one is refused, not ignored
 expect_bad set_material '--set material=nosuch' 'material: cannot read' -- \

@@ -562,6 +562,32 @@ static int check_fluid(loader *L, int effects_read)
 
 /* ----------------------------------------------------------------------- the sections */
 
+/* 1 when two blocks (boxes, or balls: radius > 0) share a volume deeper than 1 nm; touching
+ * (to round-off) is not sharing. */
+static int blocks_overlap(const stf_block *a, const stf_block *b)
+{
+    if (a->radius > 0 && b->radius > 0) {
+        double d2 = 0;
+        for (int c = 0; c < 3; c++) d2 += (a->center[c] - b->center[c]) * (a->center[c] - b->center[c]);
+        double r = a->radius + b->radius - 1e-9;
+        return d2 < r * r;
+    }
+    if (a->radius > 0 || b->radius > 0) { /* a ball and a box: the box's point nearest the centre */
+        const stf_block *ball = a->radius > 0 ? a : b, *box = a->radius > 0 ? b : a;
+        double d2 = 0;
+        for (int c = 0; c < 3; c++) {
+            double q = ball->center[c] < box->lo[c] ? box->lo[c]
+                       : ball->center[c] > box->hi[c] ? box->hi[c] : ball->center[c];
+            d2 += (ball->center[c] - q) * (ball->center[c] - q);
+        }
+        double r = ball->radius - 1e-9;
+        return d2 < r * r;
+    }
+    for (int c = 0; c < 3; c++)
+        if (!(a->lo[c] < b->hi[c] - 1e-9 && b->lo[c] < a->hi[c] - 1e-9)) return 0;
+    return 1;
+}
+
 static int parse_blocks(loader *L, const mapv *fluid)
 {
     static const char *const keys[] = {"min", "max", "center", "radius", "velocity", NULL};
@@ -601,6 +627,13 @@ static int parse_blocks(loader *L, const mapv *fluid)
                     return fail_value(L, &bm, "max", "must be > min in every component");
             }
         }
+        for (int j = 0; j < i; j++)
+            if (blocks_overlap(b, &L->s->blocks[j])) {
+                char why[96];
+                snprintf(why, sizeof why, "overlaps fluid.blocks.%d: their particles would sit "
+                         "on each other", j);
+                return fail(L, item, k, path, why);
+            }
         b->line = b->col = 1;
         node_mark(item, &b->line, &b->col);
         L->s->nblocks = i + 1;
