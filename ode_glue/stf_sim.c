@@ -329,7 +329,15 @@ int stf_sim_create(const stf_scene *scene, stf_sim **out, char *err, size_t errl
                                    vibration_peak(&scene->bodies[k].vibration));
     if (s->container && scene->container.motion == STF_MOTION_KINEMATIC)
         stf_ode_set_peak_speed(s->coupler, s->container, vibration_peak(&scene->container.vibration));
+    int before = stf_fluid_count(s->fluid);
     s->removed = stf_ode_remove_overlaps(s->coupler);
+    if (before > 0 && s->removed >= before) { /* the bodies fill the fluid: nothing to simulate */
+        snprintf(err, errlen, "%s: bodies: the bodies overlap every one of the fluid's %d "
+                 "particles (all removed at set-up): move them out of fluid.blocks",
+                 scene->path, before);
+        rc = 2;
+        goto fail;
+    }
     if (body_bounds(s) != 0) {
         snprintf(err, errlen, "out of memory");
         rc = 2;

@@ -198,6 +198,10 @@ mk blocks_touch.yaml '/^      velocity: \[0.2, 0, -0.5\]/a\
       radius: 0.01'
 "$STF" run blocks_touch.yaml -o touch.h5 --quiet --duration 0.01 >touch.out 2>&1 ||
     fail "two blocks that touch were refused: $(tail -n 2 touch.out)"
+# bodies that fill the whole fluid leave nothing to simulate: refused, not run empty
+expect_bad body_fills 'small_drop\.yaml: bodies: the bodies overlap every one of the fluid' -- \
+    "$STF" run "$BASE" -o out.h5 --quiet --set bodies.0.shape=box --unset bodies.0.radius \
+    --set 'bodies.0.size=[0.095, 0.095, 0.07]' --set 'bodies.0.position=[0, 0, 0.055]'
 # --set material= chooses the material (it is merged before the other overrides): a missing
 # one is refused, not ignored
 expect_bad set_material '--set material=nosuch' 'material: cannot read' -- \
