@@ -96,6 +96,32 @@ rc=$?
 if [ $rc -ne 0 ]; then fail "stf plot exited $rc"; cat plot.err >&2
 else check_png p.png || fail "p.png is not a valid picture"; fi
 
+# a cylinder is drawn with flat ends, not as a capsule: the same radius and length, held
+# upright at t = 0, covers fewer rows of body colour as a cylinder than as a capsule (whose
+# round ends reach a radius further each way)
+for sh in cylinder capsule; do
+    "$STF" run "$PROJ/tests/scenes/small_drop.yaml" -o "$sh.h5" --quiet --threads 1 --duration 0.01 \
+        --set "bodies.0.shape=$sh" --set bodies.0.length=0.06 --set 'bodies.0.position=[0, 0, 0.14]' \
+        >"$sh.out" 2>&1 || fail "stf run with a $sh failed: $(tail -n 2 "$sh.out")"
+    "$STF" render "$sh.h5" -o "$sh" --frames 0 >"$sh.rout" 2>&1 || fail "stf render of the $sh failed"
+done
+if [ -s cylinder/frame_0000.png ] && [ -s capsule/frame_0000.png ]; then
+    /usr/bin/python3 - cylinder/frame_0000.png capsule/frame_0000.png <<'PYEOF' || fail "cylinder against capsule"
+import sys
+from PIL import Image
+def rows(path):  # rows holding a pixel of the body's red (r high, g and b low)
+    im = Image.open(path).convert("RGB")
+    w, h = im.size
+    px = im.load()
+    return sum(1 for y in range(h) if any(px[x, y][0] > 60 and px[x, y][0] > 2.5 * px[x, y][1]
+                                          and px[x, y][0] > 2.5 * px[x, y][2] for x in range(w)))
+c, k = rows(sys.argv[1]), rows(sys.argv[2])
+print("body rows: cylinder %d, capsule %d" % (c, k))
+if not (c > 0 and c < 0.9 * k):
+    sys.exit("the cylinder (%d rows) is not shorter than the capsule (%d rows)" % (c, k))
+PYEOF
+fi
+
 # bad input
 "$STF" render /nonexistent.h5 >bad.out 2>bad.err
 rc=$?

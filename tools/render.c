@@ -267,6 +267,25 @@ static int load_view(const char *path, scene_view *v, char *err, size_t errlen)
             }
         }
         if (b->npoints) hull_faces(b);
+        if (s->shape == STF_SHAPE_CYLINDER) { /* flat ends: the mesh (rings of 32), not spheres */
+            stf_mesh m;
+            if (stf_mesh_build(s, &m) == 0) {
+                b->points = malloc(3 * (size_t)m.nv * sizeof *b->points);
+                b->tris = malloc(3 * (size_t)m.nt * sizeof *b->tris);
+                if (b->points && b->tris) {
+                    memcpy(b->points, m.v, 3 * (size_t)m.nv * sizeof *b->points);
+                    for (int e = 0; e < 3 * m.nt; e++) b->tris[e] = m.t[e];
+                    b->npoints = m.nv;
+                    b->ntris = m.nt;
+                } else {
+                    free(b->points);
+                    free(b->tris);
+                    b->points = NULL;
+                    b->tris = NULL;
+                }
+                stf_mesh_free(&m);
+            }
+        }
     }
     if (sc) stf_scene_free(sc);
     if (!v->name[0]) {
@@ -429,8 +448,8 @@ static void draw_body(canvas *c, const camera *cam, const body_view *b, double t
         }
         return;
     }
-    /* sphere; capsule and cylinder as a chain of spheres along the local z axis */
-    double len = (b->shape == STF_SHAPE_CAPSULE || b->shape == STF_SHAPE_CYLINDER) ? b->half_length : 0;
+    /* sphere; a capsule as a chain of spheres along the local z axis (a cylinder is a mesh) */
+    double len = b->shape == STF_SHAPE_CAPSULE || b->shape == STF_SHAPE_CYLINDER ? b->half_length : 0;
     double r = b->radius > 0 ? b->radius : spacing;
     int steps = len > 0 ? (int)ceil(2 * len / (r * 0.25)) : 0;
     for (int i = 0; i <= steps; i++) {
