@@ -350,8 +350,9 @@ int stf_sim_create(const stf_scene *scene, stf_sim **out, char *err, size_t errl
            of the settling time (so they fall by e^-8) */
         int n = (int)lround(scene->settle / scene->dt);
         if (stf_ode_settle(s->coupler, scene->dt, n, scene->settle / 8) != 0) {
-            snprintf(err, errlen, "%s: fluid.settle: the settling failed: %s", scene->path,
-                     stf_fluid_failure(s->fluid));
+            snprintf(err, errlen, "%s: fluid.settle: the settling failed: %s%s%s", scene->path,
+                     stf_fluid_failure(s->fluid), scene->blocks_note[0] ? "; note: " : "",
+                     scene->blocks_note);
             rc = 3;
             goto fail;
         }

@@ -183,22 +183,23 @@ static void write_path(stf_h5 *h, const char *name, const double x0[3], const pa
  * the surface while its centre is above S + R/2 = 0.105 m): it falls to contact, sinks in
  * 3.5 cm, bounces 3 cm, rolls 5 cm without slip and slides 5 cm, rests 1.5 s (the last 0.5 s
  * creeping down slower than 5 cm/s), then sinks. Every metric is known. */
+static const path_phase BALL_PATH[8] = {
+    {0.0, {0, 0, -1.5}, {0, 0, 0}},   /* z 0.3 -> 0.15: contact at the sample 0.10 */
+    {0.1, {0, 0, -0.3}, {0, 0, 0}},   /* -> 0.12: depth 0.035 */
+    {0.2, {0, 0, 0.3}, {0, 0, 0}},    /* -> 0.15: a bounce of 3 cm, its peak at depth 0.005 */
+    {0.3, {0.5, 0, -0.05}, {0, 5, 0}},/* rolls 5 cm (omega R = v), to z = 0.145 */
+    {0.4, {0.5, 0, -0.15}, {0, 0, 0}},/* slides 5 cm, to z = 0.13 */
+    {0.5, {0, 0, 0}, {0, 0, 0}},      /* rests at depth 0.025 */
+    {1.5, {0, 0, -0.04}, {0, 0, 0}},  /* creeps (slow: still resting) to z = 0.11 */
+    {2.0, {0, 0, -0.2}, {0, 0, 0}},   /* sinks: top below S when z < -0.045, t > 2.775 */
+};
+
 static void test_body(const char *path)
 {
     stf_h5 *h = body_over_layer(path, "ball", 0.1, 0.01);
     if (!h) return;
-    const path_phase ph[] = {
-        {0.0, {0, 0, -1.5}, {0, 0, 0}},   /* z 0.3 -> 0.15: contact at the sample 0.10 */
-        {0.1, {0, 0, -0.3}, {0, 0, 0}},   /* -> 0.12: depth 0.035 */
-        {0.2, {0, 0, 0.3}, {0, 0, 0}},    /* -> 0.15: a bounce of 3 cm, its peak at depth 0.005 */
-        {0.3, {0.5, 0, -0.05}, {0, 5, 0}},/* rolls 5 cm (omega R = v), to z = 0.145 */
-        {0.4, {0.5, 0, -0.15}, {0, 0, 0}},/* slides 5 cm, to z = 0.13 */
-        {0.5, {0, 0, 0}, {0, 0, 0}},      /* rests at depth 0.025 */
-        {1.5, {0, 0, -0.04}, {0, 0, 0}},  /* creeps (slow: still resting) to z = 0.11 */
-        {2.0, {0, 0, -0.2}, {0, 0, 0}},   /* sinks: top below S when z < -0.045, t > 2.775 */
-    };
     const double x0[3] = {0.05, 0.1, 0.3}; /* over the layer (x, y in [0, 0.2] m) throughout */
-    write_path(h, "ball", x0, ph, 8, 3.0);
+    write_path(h, "ball", x0, BALL_PATH, 8, 3.0);
     stf_metrics m;
     close_and_measure(h, path, &m);
     CHECK(m.nbodies == 1, "bodies %d", m.nbodies);
@@ -259,17 +260,11 @@ static void test_plunge(const char *path)
  * rest or sinking beside it. */
 static void test_beside(const char *path)
 {
-    const path_phase ph[] = {
-        {0.0, {0, 0, -1.5}, {0, 0, 0}}, {0.1, {0, 0, -0.3}, {0, 0, 0}},
-        {0.2, {0, 0, 0.3}, {0, 0, 0}},  {0.3, {0.5, 0, -0.05}, {0, 5, 0}},
-        {0.4, {0.5, 0, -0.15}, {0, 0, 0}}, {0.5, {0, 0, 0}, {0, 0, 0}},
-        {1.5, {0, 0, -0.04}, {0, 0, 0}}, {2.0, {0, 0, -0.2}, {0, 0, 0}},
-    };
     for (int k = 0; k < 2; k++) {
         stf_h5 *h = body_over_layer(path, "ball", 0.1, 0.01);
         if (!h) return;
         const double x0[3] = {k ? 0.157 : 0.3, 0.1, 0.3};
-        write_path(h, "ball", x0, ph, 8, 3.0);
+        write_path(h, "ball", x0, BALL_PATH, 8, 3.0);
         stf_metrics m;
         close_and_measure(h, path, &m);
         CHECK(m.nbodies == 1, "bodies %d", m.nbodies);

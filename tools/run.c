@@ -722,6 +722,7 @@ int cli_run(int argc, char **argv, int check)
             fprintf(stderr, "%s\n", err);
             return 2;
         }
+        if (sc->blocks_note[0]) fprintf(stderr, "stf: note: %s\n", sc->blocks_note);
         own = a.out ? NULL : default_out(sc);
         out = a.out ? a.out : own;
         status = check_steps(&a, sc, NULL, check);

@@ -563,7 +563,8 @@ static int check_fluid(loader *L, int effects_read)
 /* ----------------------------------------------------------------------- the sections */
 
 /* 1 when two blocks (boxes, or balls: radius > 0) share a volume deeper than 1 nm; touching
- * (to round-off) is not sharing. */
+ * (to round-off) is not sharing. Not an error (the stability tests use it on purpose): the
+ * first such pair is noted in blocks_note. */
 static int blocks_overlap(const stf_block *a, const stf_block *b)
 {
     if (a->radius > 0 && b->radius > 0) {
@@ -627,12 +628,13 @@ static int parse_blocks(loader *L, const mapv *fluid)
                     return fail_value(L, &bm, "max", "must be > min in every component");
             }
         }
-        for (int j = 0; j < i; j++)
+        for (int j = 0; j < i && !L->s->blocks_note[0]; j++)
             if (blocks_overlap(b, &L->s->blocks[j])) {
-                char why[96];
-                snprintf(why, sizeof why, "overlaps fluid.blocks.%d: their particles would sit "
-                         "on each other", j);
-                return fail(L, item, k, path, why);
+                int line = 1, col = 1;
+                node_mark(item, &line, &col);
+                snprintf(L->s->blocks_note, sizeof L->s->blocks_note,
+                         "%s:%d:%d: %s overlaps fluid.blocks.%d: the particles they share sit on "
+                         "each other (twice the density there)", L->file, line, col, path, j);
             }
         b->line = b->col = 1;
         node_mark(item, &b->line, &b->col);

@@ -86,6 +86,9 @@ typedef struct stf_scene {
     stf_fluid_def fluid;
     int nblocks;
     stf_block *blocks;
+    char blocks_note[768];  /* "" or which fluid blocks share a volume (legal: their particles
+                               sit on each other at twice the density, a stress case; usually
+                               a mistake, so `stf run` prints it and a failed settling names it) */
     stf_container_def container;
     int nbodies;
     stf_body_def *bodies;
