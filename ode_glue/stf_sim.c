@@ -84,6 +84,33 @@ static int make_body(stf_sim *s, int k, char *err, size_t errlen)
     return 0;
 }
 
+/* Bodies that start inside each other (deeper than a micrometre, ODE's own contact test),
+ * where at least one of them moves: ODE would throw them apart in the first step. Two static
+ * or kinematic bodies may overlap (a fixed compound of parts). Returns 0, or 2 with err. */
+static int check_body_overlaps(const stf_sim *s, char *err, size_t errlen)
+{
+    const stf_scene *sc = s->scene;
+    for (int k = 1; k < sc->nbodies; k++)
+        for (int j = 0; j < k; j++) {
+            if (sc->bodies[j].motion != STF_MOTION_DYNAMIC && sc->bodies[k].motion != STF_MOTION_DYNAMIC)
+                continue;
+            dGeomID a = dBodyGetFirstGeom(s->bodies[j]), b = dBodyGetFirstGeom(s->bodies[k]);
+            if (!a || !b) continue;
+            dContactGeom c[8];
+            int nc = dCollide(a, b, 8, c, sizeof c[0]);
+            double depth = 0;
+            for (int e = 0; e < nc; e++) depth = c[e].depth > depth ? c[e].depth : depth;
+            if (depth > 1e-6) {
+                const stf_body_def *bk = &sc->bodies[k];
+                snprintf(err, errlen, "%s:%d:%d: bodies.%d.position: the body '%s' starts inside "
+                         "bodies.%d ('%s'), %.3g m deep: move one of them",
+                         sc->path, bk->line, bk->col, k, bk->name, j, sc->bodies[j].name, depth);
+                return 2;
+            }
+        }
+    return 0;
+}
+
 /* The container's floor and walls as ODE boxes (for the bodies), and as one container
  * collider (for the fluid). */
 static int make_container(stf_sim *s, char *err, size_t errlen)
@@ -318,6 +345,7 @@ int stf_sim_create(const stf_scene *scene, stf_sim **out, char *err, size_t errl
     if (scene->container.present && (rc = make_container(s, err, errlen))) goto fail;
     for (int k = 0; k < nb; k++)
         if ((rc = make_body(s, k, err, errlen))) goto fail;
+    if ((rc = check_body_overlaps(s, err, errlen))) goto fail;
     for (int k = 0; k <= nb; k++) {
         const stf_vibration *v = k < nb ? &scene->bodies[k].vibration : &scene->container.vibration;
         s->freq[k] = v->frequency;

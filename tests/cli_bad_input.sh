@@ -202,6 +202,14 @@ mk blocks_touch.yaml '/^      velocity: \[0.2, 0, -0.5\]/a\
 "$STF" run blocks_touch.yaml -o touch.h5 --quiet --duration 0.01 >touch.out 2>touch.err ||
     fail "two blocks that touch were refused: $(tail -n 2 touch.err)"
 grep -q "note:" touch.err && fail "two blocks that touch got a note: $(head -c 300 touch.err)"
+# a body that starts inside another (ODE would throw them apart) is refused; one that only
+# touches it runs
+expect_bad body_in_body 'bodies\.1\.position: the body .b2. starts inside bodies\.0 \(.ball.\)' -- \
+    "$STF" run "$BASE" -o out.h5 --quiet \
+    --set 'bodies.1={name: b2, shape: sphere, radius: 0.02, mass: 0.05, position: [0, 0, 0.16]}'
+"$STF" run "$BASE" -o touching.h5 --quiet --duration 0.01 \
+    --set 'bodies.1={name: b2, shape: box, size: [0.04, 0.04, 0.04], mass: 0.05, position: [0, 0, 0.19]}' \
+    >touching.out 2>&1 || fail "a box touching the ball was refused: $(tail -n 2 touching.out)"
 # bodies that fill the whole fluid leave nothing to simulate: refused, not run empty
 expect_bad body_fills 'small_drop\.yaml: bodies: the bodies overlap every one of the fluid' -- \
     "$STF" run "$BASE" -o out.h5 --quiet --set bodies.0.shape=box --unset bodies.0.radius \
