@@ -833,6 +833,19 @@ double stf_fluid_spring_gain(const stf_fluid *f)
 }
 double stf_fluid_last_dt(const stf_fluid *f) { return f->dt_now; }
 
+double stf_fluid_pressure_stiffness(const stf_fluid *f)
+{
+    if (!has(f, STF_EFFECT_PRESSURE) || projects(f) || !f->rho || f->steps == 0) return 0;
+    double m = 0;
+    int n = f->n;
+#pragma omp parallel for schedule(static) reduction(max : m)
+    for (int i = 0; i < n; i++) {
+        double p = f->rho[i] + 2.0 * f->rho_near[i]; /* pressures (stf_pressure_relax) */
+        if (p > m) m = p;
+    }
+    return m / f->h;
+}
+
 void stf_fluid_get_def(const stf_fluid *f, stf_fluid_def *def) { *def = f->def; }
 
 long stf_fluid_saturated_steps(const stf_fluid *f)

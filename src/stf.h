@@ -440,6 +440,13 @@ STF_API double stf_fluid_max_speed(const stf_fluid *f);
  * saturation; dimensionless, 0 without springs): the spring network's stiffness number, which
  * limits the Jacobi step; 0 with relaxation gauss_seidel, stable at any gain. */
 STF_API double stf_fluid_spring_gain(const stf_fluid *f);
+/* The Clavet pressure's own stiffness in the last step, 1/s^2: the largest (P + 2 P_near) / h
+ * over the particles, P and P_near the pressures of the double density relaxation (m/s^2).
+ * A pair's push dt^2 (P (1 - q) + P_near (1 - q)^2) changes with its distance by dt^2 (P +
+ * 2 P_near (1 - q)) / h besides the density's own change (k/h): under an impact's compression
+ * that term grows past k/h. 0 without the pressure effect, in projection mode, or before the
+ * first step. */
+STF_API double stf_fluid_pressure_stiffness(const stf_fluid *f);
 /* The length of the last step, s (0 before the first). */
 STF_API double stf_fluid_last_dt(const stf_fluid *f);
 /* The definition the fluid was created with, as given (h 0 means 2 spacings). */
