@@ -711,13 +711,12 @@ int stf_fluid_step(stf_fluid *f, double dt)
     if (has(f, STF_EFFECT_HISTORY) && f->def.k_hist > 0) { /* k_hist = 0: D is never read */
         TIMED(STAGE_HISTORY, {
             const double *vh = f->v;
-            if (f->def.history_velocity == STF_HISTORY_SMOOTHED && f->def.history_smoothing > 0) {
-                int rc = stf_fluid_field_velocity(f, f->dx);
+            if (f->def.history_velocity == STF_HISTORY_SMOOTHED) {
+                int rc = 0;
+                if (f->def.history_smoothing > 0) rc = stf_fluid_field_velocity(f, f->dx);
+                else stf_fluid_smoothed_velocity(f, f->dx);
                 if (rc == -1) return -1;
                 if (rc != 0) goto oom;
-                vh = f->dx;
-            } else if (f->def.history_velocity == STF_HISTORY_SMOOTHED) {
-                stf_fluid_smoothed_velocity(f, f->dx);
                 vh = f->dx;
             }
             if (stf_history_push(&f->hist, vh, n) != 0) goto oom;

@@ -24,13 +24,30 @@
 
 #include "fluid.h"
 
-/* The lattice cell of coordinate u (in cells from the origin) and the fraction past it. */
-static inline long cell_of(double u, long last, double *frac)
+/* The lattice of cell 1/inv from origin with dim nodes along each axis: the 8 corners of the
+ * cell holding point p and their trilinear weights. */
+typedef struct lattice {
+    double origin[3], inv;
+    long dim[3];
+} lattice;
+
+static inline void corners(const lattice *g, const double *p, size_t node[8], double w[8])
 {
-    long c = (long)u;
-    if (c > last) c = last; /* the top face of the box: stay in the last cell */
-    *frac = u - (double)c;
-    return c;
+    double fr[3];
+    size_t base = 0, stride[3] = {1, (size_t)g->dim[0], (size_t)(g->dim[0] * g->dim[1])};
+    for (int a = 0; a < 3; a++) {
+        double u = (p[a] - g->origin[a]) * g->inv;
+        long c = (long)u;
+        if (c > g->dim[a] - 2) c = g->dim[a] - 2; /* the top face of the box: the last cell */
+        fr[a] = u - (double)c;
+        base += (size_t)c * stride[a];
+    }
+    for (int k = 0; k < 8; k++) {
+        w[k] = ((k & 1) ? fr[0] : 1 - fr[0]) * ((k & 2) ? fr[1] : 1 - fr[1]) *
+               ((k & 4) ? fr[2] : 1 - fr[2]);
+        node[k] = base + ((k & 1) ? stride[0] : 0) + ((k & 2) ? stride[1] : 0) +
+                  ((k & 4) ? stride[2] : 0);
+    }
 }
 
 int stf_fluid_field_velocity(stf_fluid *f, double *out)
@@ -45,13 +62,12 @@ int stf_fluid_field_velocity(stf_fluid *f, double *out)
             lo[a] = c < lo[a] ? c : lo[a];
             hi[a] = c > hi[a] ? c : hi[a];
         }
-    double origin[3];
-    long dim[3];
+    lattice g = {.inv = inv};
     double nodes = 1;
     for (int a = 0; a < 3; a++) {
-        origin[a] = floor(lo[a] * inv) * L; /* on multiples of L: the lattice does not drift */
-        dim[a] = (long)floor((hi[a] - origin[a]) * inv) + 2;
-        nodes *= (double)dim[a];
+        g.origin[a] = floor(lo[a] * inv) * L; /* on multiples of L: the lattice does not drift */
+        g.dim[a] = (long)floor((hi[a] - g.origin[a]) * inv) + 2;
+        nodes *= (double)g.dim[a];
     }
     if (!(nodes <= 1.0e8)) {
         snprintf(f->failure, sizeof f->failure,
@@ -73,41 +89,25 @@ int stf_fluid_field_velocity(stf_fluid *f, double *out)
     double *W = f->field_w, *V = f->field_v;
     memset(W, 0, nc * sizeof *W);
     memset(V, 0, 3 * nc * sizeof *V);
-    size_t sx = 1, sy = (size_t)dim[0], sz = (size_t)(dim[0] * dim[1]);
     for (int i = 0; i < n; i++) { /* spread, in particle order */
-        double fr[3];
-        long c0 = cell_of((x[3 * i] - origin[0]) * inv, dim[0] - 2, &fr[0]);
-        long c1 = cell_of((x[3 * i + 1] - origin[1]) * inv, dim[1] - 2, &fr[1]);
-        long c2 = cell_of((x[3 * i + 2] - origin[2]) * inv, dim[2] - 2, &fr[2]);
-        size_t base = (size_t)c0 * sx + (size_t)c1 * sy + (size_t)c2 * sz;
+        size_t node[8];
+        double w[8];
+        corners(&g, x + 3 * i, node, w);
         for (int k = 0; k < 8; k++) {
-            double w = ((k & 1) ? fr[0] : 1 - fr[0]) * ((k & 2) ? fr[1] : 1 - fr[1]) *
-                       ((k & 4) ? fr[2] : 1 - fr[2]);
-            size_t node = base + ((k & 1) ? sx : 0) + ((k & 2) ? sy : 0) + ((k & 4) ? sz : 0);
-            W[node] += w;
-            V[3 * node] += w * v[3 * i];
-            V[3 * node + 1] += w * v[3 * i + 1];
-            V[3 * node + 2] += w * v[3 * i + 2];
+            W[node[k]] += w[k];
+            for (int a = 0; a < 3; a++) V[3 * node[k] + (size_t)a] += w[k] * v[3 * i + a];
         }
     }
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) { /* gather: a particle's own weight keeps the sum > 0 */
-        double fr[3];
-        long c0 = cell_of((x[3 * i] - origin[0]) * inv, dim[0] - 2, &fr[0]);
-        long c1 = cell_of((x[3 * i + 1] - origin[1]) * inv, dim[1] - 2, &fr[1]);
-        long c2 = cell_of((x[3 * i + 2] - origin[2]) * inv, dim[2] - 2, &fr[2]);
-        size_t base = (size_t)c0 * sx + (size_t)c1 * sy + (size_t)c2 * sz;
-        double sw = 0, mx = 0, my = 0, mz = 0;
+        size_t node[8];
+        double w[8], sw = 0, m[3] = {0, 0, 0};
+        corners(&g, x + 3 * i, node, w);
         for (int k = 0; k < 8; k++) {
-            double w = ((k & 1) ? fr[0] : 1 - fr[0]) * ((k & 2) ? fr[1] : 1 - fr[1]) *
-                       ((k & 4) ? fr[2] : 1 - fr[2]);
-            size_t node = base + ((k & 1) ? sx : 0) + ((k & 2) ? sy : 0) + ((k & 4) ? sz : 0);
-            sw += w * W[node];
-            mx += w * V[3 * node];
-            my += w * V[3 * node + 1];
-            mz += w * V[3 * node + 2];
+            sw += w[k] * W[node[k]];
+            for (int a = 0; a < 3; a++) m[a] += w[k] * V[3 * node[k] + (size_t)a];
         }
-        out[3 * i] = mx / sw, out[3 * i + 1] = my / sw, out[3 * i + 2] = mz / sw;
+        for (int a = 0; a < 3; a++) out[3 * i + a] = m[a] / sw;
     }
     return 0;
 }

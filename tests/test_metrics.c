@@ -194,16 +194,22 @@ static const path_phase BALL_PATH[8] = {
     {2.0, {0, 0, -0.2}, {0, 0, 0}},   /* sinks: top below S when z < -0.045, t > 2.775 */
 };
 
-static void test_body(const char *path)
+/* BALL_PATH from x0 over the layer, measured into m; 0 when the file holds the one body. */
+static int measure_ball_path(const char *path, const double x0[3], stf_metrics *m)
 {
     stf_h5 *h = body_over_layer(path, "ball", 0.1, 0.01);
-    if (!h) return;
-    const double x0[3] = {0.05, 0.1, 0.3}; /* over the layer (x, y in [0, 0.2] m) throughout */
+    if (!h) return -1;
     write_path(h, "ball", x0, BALL_PATH, 8, 3.0);
+    close_and_measure(h, path, m);
+    CHECK(m->nbodies == 1, "bodies %d", m->nbodies);
+    return m->nbodies == 1 ? 0 : -1;
+}
+
+static void test_body(const char *path)
+{
+    const double x0[3] = {0.05, 0.1, 0.3}; /* over the layer (x, y in [0, 0.2] m) throughout */
     stf_metrics m;
-    close_and_measure(h, path, &m);
-    CHECK(m.nbodies == 1, "bodies %d", m.nbodies);
-    if (m.nbodies != 1) return;
+    if (measure_ball_path(path, x0, &m) != 0) return;
     const stf_body_metrics *b = &m.bodies[0];
     CHECK_NEAR(b->radius, 0.1, 1e-12, "radius");
     CHECK_NEAR(b->first_contact_time, 0.10, 1e-9, "first_contact_time (depth > 0)");
@@ -261,14 +267,9 @@ static void test_plunge(const char *path)
 static void test_beside(const char *path)
 {
     for (int k = 0; k < 2; k++) {
-        stf_h5 *h = body_over_layer(path, "ball", 0.1, 0.01);
-        if (!h) return;
         const double x0[3] = {k ? 0.157 : 0.3, 0.1, 0.3};
-        write_path(h, "ball", x0, BALL_PATH, 8, 3.0);
         stf_metrics m;
-        close_and_measure(h, path, &m);
-        CHECK(m.nbodies == 1, "bodies %d", m.nbodies);
-        if (m.nbodies != 1) return;
+        if (measure_ball_path(path, x0, &m) != 0) return;
         const stf_body_metrics *b = &m.bodies[0];
         if (k == 0) {
             CHECK(isnan(b->first_contact_time) && b->penetration_depth == 0 && b->bounces == 0 &&
