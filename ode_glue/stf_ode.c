@@ -682,17 +682,30 @@ void stf_ode_body_fluid_force(const stf_ode *c, dBodyID body, double force[3], d
 
 int stf_ode_settle(stf_ode *c, double dt, int steps, double tau)
 {
+    return stf_ode_settle_until(c, dt, steps, tau, NULL, NULL);
+}
+
+int stf_ode_settle_until(stf_ode *c, double dt, int steps, double tau,
+                         int (*stop)(void *arg), void *arg)
+{
     for (int k = 0; k < c->n; k++) { /* the poses as synced, the velocities zero */
         sync_collider(c, &c->att[k]);
         stf_fluid_hold_collider(c->fluid, c->att[k].collider);
     }
     double keep = exp(-dt / tau);
     for (int s = 0; s < steps; s++) {
-        if (stf_fluid_step(c->fluid, dt) != 0) {
-            fail(c, "%s", stf_fluid_failure(c->fluid));
-            return -1;
+        /* split as a step of the run is (stf_ode_substeps): a scene's dt that its run
+           takes in substeps is no stabler while the fluid settles */
+        int m = stf_ode_substeps(c, dt);
+        double sub = dt / m, keep_sub = m == 1 ? keep : exp(-sub / tau);
+        for (int j = 0; j < m; j++) {
+            if (stop && stop(arg)) return 1;
+            if (stf_fluid_step(c->fluid, sub) != 0) {
+                fail(c, "%s", stf_fluid_failure(c->fluid));
+                return -1;
+            }
+            stf_fluid_scale_velocities(c->fluid, keep_sub);
         }
-        stf_fluid_scale_velocities(c->fluid, keep);
     }
     stf_fluid_reset_clock(c->fluid);
     stf_fluid_forget_history(c->fluid); /* the start-up's motion is not the material's past */

@@ -159,11 +159,17 @@ STF_API const char *stf_ode_failure(const stf_ode *c);
 STF_API void stf_ode_body_fluid_force(const stf_ode *c, dBodyID body, double force[3], double torque[3]);
 
 /* Lets the fluid settle around the attached solids held still (their velocities taken as
- * zero, ODE not stepped) for `steps` fluid steps of dt, every velocity damped by
- * exp(-dt / tau) after each, then sets the fluid's clock back to 0: the fluid starts at rest
+ * zero, ODE not stepped) for `steps` steps of dt, each split into substeps as stf_ode_step
+ * splits it (stf_ode_substeps), every velocity damped by exp(-substep / tau) after each
+ * substep, then sets the fluid's clock back to 0: the fluid starts at rest
  * with the pressure that holds it up (scene key fluid.settle). 0, or -1 on a numerical
  * failure (stf_ode_failure). */
 STF_API int stf_ode_settle(stf_ode *c, double dt, int steps, double tau);
+/* stf_ode_settle that asks stop(arg) before each of its steps (an interrupt: a long settling
+ * ends within one fluid step). Returns 1 when stop answered non-zero: the fluid is then part
+ * settled, its clock not reset. stop may be NULL. */
+STF_API int stf_ode_settle_until(stf_ode *c, double dt, int steps, double tau,
+                                 int (*stop)(void *arg), void *arg);
 
 #ifdef __cplusplus
 }

@@ -304,6 +304,12 @@ static int body_bounds(stf_sim *s)
 
 int stf_sim_create(const stf_scene *scene, stf_sim **out, char *err, size_t errlen)
 {
+    return stf_sim_create_until(scene, NULL, NULL, out, err, errlen);
+}
+
+int stf_sim_create_until(const stf_scene *scene, int (*stop)(void *arg), void *arg,
+                         stf_sim **out, char *err, size_t errlen)
+{
     ode_init_once();
     *out = NULL;
     stf_sim *s = calloc(1, sizeof *s);
@@ -377,7 +383,14 @@ int stf_sim_create(const stf_scene *scene, stf_sim **out, char *err, size_t errl
            around the bodies held still, its motions damped with a time constant of an eighth
            of the settling time (so they fall by e^-8) */
         int n = (int)lround(scene->settle / scene->dt);
-        if (stf_ode_settle(s->coupler, scene->dt, n, scene->settle / 8) != 0) {
+        int settled = stf_ode_settle_until(s->coupler, scene->dt, n, scene->settle / 8, stop, arg);
+        if (settled == 1) {
+            snprintf(err, errlen, "%s: fluid.settle: interrupted while the fluid settled (before "
+                     "t = 0): nothing was simulated", scene->path);
+            rc = 130;
+            goto fail;
+        }
+        if (settled != 0) {
             snprintf(err, errlen, "%s: fluid.settle: the settling failed: %s%s%s", scene->path,
                      stf_fluid_failure(s->fluid), scene->blocks_note[0] ? "; note: " : "",
                      scene->blocks_note);

@@ -52,6 +52,12 @@ typedef struct stf_sim {
 
 /* Builds the simulation. Returns 0; 2 with a message for a scene that cannot be built. */
 int stf_sim_create(const stf_scene *scene, stf_sim **out, char *err, size_t errlen);
+/* stf_sim_create whose fluid.settle asks stop(arg) before each of its steps (`stf run`'s
+ * interrupts: a settling of many seconds ends within one fluid step). Returns as
+ * stf_sim_create; 3 with a message when the settling failed, 130 when stop answered non-zero
+ * (*out is then NULL). */
+int stf_sim_create_until(const stf_scene *scene, int (*stop)(void *arg), void *arg,
+                         stf_sim **out, char *err, size_t errlen);
 void stf_sim_destroy(stf_sim *s);
 /* One step of the scene's dt: one substep, or (adaptive control, the default) m >= 1 equal
  * substeps of dt/m chosen from the velocity (CFL), the effective stiffness and the thin

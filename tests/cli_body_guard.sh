@@ -12,6 +12,8 @@
 #   readable) well before a frame could finish. The margin is generous (3 s against the
 #   grace of 0.5 s plus one substep of ~20 ms and the file's close) so that a loaded machine
 #   does not make it fail; before the check between substeps it took a whole frame (~10 s).
+#   The same holds while the fluid settles before t = 0 (fluid.settle): it stops within one
+#   settling step, with no output file.
 # Args: STF_BINARY PROJECT_DIR
 . "$(dirname "$0")/lib_cli.sh" cli_body_guard "$@"
 stf=$STF; src=$PROJ
@@ -60,6 +62,28 @@ f = h5py.File("long.h5", "r")
 assert f.attrs["exit_status"] == 130
 assert np.all(np.isfinite(f["Step#0/x"][:]))
 PY
+
+# --- interrupt latency while the fluid settles (before t = 0, no file yet) ---------------------
+# fluid.settle = 10 s of the same scene is 100 steps of ~45 substeps; SIGTERM once the run has
+# used 1 s of CPU (its handler is set before the settling starts): exit 130 within the same
+# margin, no output file.
+"$stf" run "$src/tests/scenes/long_steps.yaml" -o settle.h5 --set fluid.settle=10 --quiet \
+    --threads 1 2>settle.txt &
+pid=$!
+while kill -0 $pid 2>/dev/null && [ "$(awk '{print $14}' /proc/$pid/stat 2>/dev/null || echo 0)" -lt \
+    "$(getconf CLK_TCK)" ]; do sleep 0.05; done
+t0=$(date +%s.%N)
+kill -TERM $pid
+wait $pid
+rc=$?
+t1=$(date +%s.%N)
+lat=$(echo "$t1 - $t0" | bc)
+echo "cli_body_guard: SIGTERM to exit while settling: $lat s"
+[ $rc -eq 130 ] || fail "settling: exit $rc after SIGTERM, want 130 ($(cat settle.txt))"
+grep -q "fluid.settle: interrupted while the fluid settled" settle.txt ||
+    fail "settling: no message naming the settling: $(cat settle.txt)"
+[ "$(echo "$lat < 3" | bc)" -eq 1 ] || fail "settling: SIGTERM took $lat s to end the run (want < 3 s)"
+[ ! -e settle.h5 ] || fail "settling: an output file was written for a run that never started"
 
 if [ $fails -ne 0 ]; then
     echo "cli_body_guard: $fails failure(s)" >&2

@@ -38,6 +38,12 @@ static void on_signal(int sig) { interrupted = sig; }
  * (stf_sim.stop): a run whose frames or steps are long still ends within about a second. */
 static const double INTERRUPT_GRACE = 0.5;
 static double interrupt_seen; /* omp_get_wtime() when the loop first saw the signal */
+/* The settling before t = 0 (fluid.settle) has no frame to finish: it stops at once. */
+static int stop_settling(void *arg)
+{
+    (void)arg;
+    return interrupted != 0;
+}
 static int stop_now(void *arg)
 {
     (void)arg;
@@ -403,9 +409,11 @@ static int start_run(const stf_scene *sc, const char *out, const stf_state *resu
                      double duration, stf_sim **sim, stf_h5 **h, run_progress *p, frame_buf *b)
 {
     char err[1024];
-    if (stf_sim_create(sc, sim, err, sizeof err) != 0) {
+    int rc = stf_sim_create_until(sc, stop_settling, NULL, sim, err, sizeof err);
+    if (rc != 0) {
         fprintf(stderr, "%s\n", err);
-        return 2;
+        if (rc == 130) fprintf(stderr, "stf: no output written to %s\n", out);
+        return rc == 130 ? 130 : 2; /* a failed settling: no frame, no metrics */
     }
     int n = stf_fluid_count((*sim)->fluid);
     long steps = lround(duration / sc->dt);
