@@ -40,5 +40,8 @@ steps = [k for k in f if k.startswith("Step#")]
 assert len(steps) >= 2, steps
 assert f.attrs["substeps"] > 0 and "json" in f["metrics"].attrs
 PY
-"$stf" report int.h5 > /dev/null || fail "report of an interrupted run failed"
+"$stf" report int.h5 > rep.txt || fail "report of an interrupted run failed"
+grep -q "^  status .*interrupted (exit 130)" rep.txt || fail "stf report does not say the run was interrupted: $(head -3 rep.txt)"
+"$stf" report blow.h5 > rep.txt || fail "report of a failed run failed"
+grep -q "^  status .*numerical failure (exit 3)" rep.txt || fail "stf report does not say the run failed: $(head -3 rep.txt)"
 echo "cli_failure: ok"

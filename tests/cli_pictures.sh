@@ -83,6 +83,11 @@ fi
 rc=$?
 if [ $rc -ne 0 ]; then fail "stf render --montage exited $rc"; cat mont.err >&2
 else check_png m.png || fail "m.png is not a valid picture"; fi
+# -o with --montage: refused (exit 2), not silently ignored
+"$STF" render s.h5 --montage m2.png -o mdir >mo.out 2>mo.err
+rc=$?
+[ $rc -eq 2 ] && grep -q "give one of them" mo.err && [ ! -e m2.png ] && [ ! -e mdir ] ||
+    fail "stf render --montage with -o: exit $rc, want 2 and nothing written ($(cat mo.err))"
 
 # speed colouring
 "$STF" render s.h5 --frames 2 --color speed -o speed --width 320 --height 240 >sp.out 2>sp.err

@@ -887,6 +887,11 @@ int cli_render(int argc, char **argv)
         fprintf(stderr, "stf render: --width/--height at most 8192\n");
         return 2;
     }
+    if (montage && dir_opt) { /* one picture or a directory of frames, not both */
+        fprintf(stderr, "stf render: -o DIR writes frames and --montage FILE.png one picture: "
+                        "give one of them\n");
+        return 2;
+    }
     if (vmax_opt > 0 && color == COLOR_NONE) {
         fprintf(stderr, "stf render: --max is the top of the colour scale: give --color speed or khist\n");
         return 2;

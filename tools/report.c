@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "h5io.h"
 #include "metrics.h"
 
 /* The unit of a metric (metrics.h), a body's (without "NAME.") or the fluid's (without
@@ -36,6 +37,29 @@ static const cli_usage USAGE = {
     "           stf run writes into the file's /metrics\n"
     "exit codes: 0 printed, 2 bad input (bad option, unreadable or not a run's file)\n"};
 
+/* A run that did not finish says so first: its metrics cover only the part it ran. The
+ * file's exit_status (0 done, 3 numerical failure, 130 interrupted; absent while a run
+ * writes it or after a kill) and the time it reached against the scene's duration. */
+static void run_status(const char *path)
+{
+    stf_h5r *r = NULL;
+    char err[256];
+    if (stf_h5r_open(path, &r, err, sizeof err) != 0) return;
+    double status = -1, duration = 0, removed = 0;
+    int has_status = stf_h5r_attr_double(r, "exit_status", &status) == 0;
+    stf_h5r_attr_double(r, "duration", &duration);
+    if (stf_h5r_attr_double(r, "removed_at_setup", &removed) == 0 && removed > 0)
+        printf("  %-22s %.0f (overlapped a body at set-up)\n", "removed_particles", removed);
+    stf_h5r_close(r);
+    const char *what = !has_status ? "unfinished (no exit status: still running, or killed)"
+                       : status == 0 ? NULL
+                       : status == 3 ? "stopped by a numerical failure (exit 3)"
+                       : status == 130 ? "interrupted (exit 130)"
+                       : "ended with an error";
+    if (what) printf("  %-22s %s; the metrics cover the run up to time_end, of %g s\n", "status",
+                     what, duration);
+}
+
 int cli_report(int argc, char **argv)
 {
     if (cli_help_asked(argc, argv)) return cli_help(&USAGE);
@@ -61,6 +85,7 @@ int cli_report(int argc, char **argv)
         return 0;
     }
     printf("%s\n", path);
+    run_status(path);
     line("time_end", m.time_end, "s");
     line("surface_height", m.surface_height, "m");
     for (int k = 0; k < m.nbodies; k++) {
