@@ -73,6 +73,12 @@ L=$(line_of negspacing.yaml '^  spacing:')
 expect_bad negspacing "negspacing\\.yaml:$L:12: fluid\\.spacing: " '> 0' -- \
     "$STF" run negspacing.yaml -o out.h5 --quiet
 
+# mass on a kinematic body would be ignored: refused
+mk kinmass.yaml 's/^    mass: 0.05/    mass: 0.05\n    motion: kinematic/'
+L=$(line_of kinmass.yaml '^    mass:')
+expect_bad kinmass "kinmass\\.yaml:$L:5: bodies\\.0\\.mass: " 'only for motion: dynamic' -- \
+    "$STF" run kinmass.yaml -o out.h5 --quiet
+
 mk q15.yaml 's/q: 0.5,/q: 1.5,/'
 L=$(line_of q15.yaml '^  history:')
 C=$(($(sed -n "${L}p" q15.yaml | awk '{print index($0, "1.5")}')))

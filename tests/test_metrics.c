@@ -272,7 +272,7 @@ static void test_beside(const char *path)
         if (measure_ball_path(path, x0, &m) != 0) return;
         const stf_body_metrics *b = &m.bodies[0];
         if (k == 0) {
-            CHECK(isnan(b->first_contact_time) && b->penetration_depth == 0 && b->bounces == 0 &&
+            CHECK(isnan(b->first_contact_time) && isnan(b->penetration_depth) && b->bounces == 0 &&
                       b->roll_distance == 0 && b->rest_on_surface == 0 && isnan(b->sink_time),
                   "a ball beside the layer: contact %g, penetration %g, bounces %d, roll %g, "
                   "rest %g, sink %g", b->first_contact_time, b->penetration_depth, b->bounces,

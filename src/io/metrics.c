@@ -69,7 +69,7 @@ static void body_metrics(const stf_h5r *r, const char *name, double surface,
     memset(b, 0, sizeof *b);
     snprintf(b->name, sizeof b->name, "%s", name);
     b->first_contact_time = b->sink_time = b->float_duration = NAN;
-    b->rest_time = b->rolling_ratio = NAN;
+    b->rest_time = b->rolling_ratio = b->penetration_depth = NAN;
     char key[128];
     snprintf(key, sizeof key, "body.%s.half_height", name);
     double R = attr_or(r, key, 0.0);
@@ -96,6 +96,7 @@ static void body_metrics(const stf_h5r *r, const char *name, double surface,
     if (contact < 0) goto done;
     double tc = t[contact];
     b->first_contact_time = tc;
+    b->penetration_depth = 0;
     /* penetration, bounces, roll */
     rise up = {0, p[3 * contact + 2], p[3 * contact + 2], depth[contact]};
     double ratio_sum = 0, ratio_path = 0;

@@ -87,7 +87,7 @@ typedef struct stf_body_metrics {
     char name[64];
     double radius;             /* m: R of the definitions above */
     double first_contact_time; /* s, NAN if never */
-    double penetration_depth;  /* m, 0 if never in contact */
+    double penetration_depth;  /* m, NAN if never in contact (an upper bound on it then fails) */
     int bounces;
     double max_rebound_height; /* m */
     double roll_distance;      /* m */
@@ -106,7 +106,7 @@ typedef struct stf_metrics {
     stf_body_metrics bodies[STF_METRICS_MAX_BODIES];
     long particles;
     long escaped;
-    double max_speed;          /* m/s */
+    double max_speed;          /* m/s, the largest particle speed in the saved frames */
     int nan;
     double com_rebound_height; /* m */
     double finger_height;      /* m */

@@ -1141,6 +1141,10 @@ static int parse_mass(loader *L, const mapv *m, stf_body_def *b)
     if (rm && rd) return fail_key(L, m, "density", "give either mass or density, not both");
     if (b->motion == STF_MOTION_DYNAMIC && !rm && !rd)
         return missing(L, m, "mass", " (a dynamic body needs mass or density)");
+    if (b->motion != STF_MOTION_DYNAMIC && (rm || rd)) /* it would be ignored */
+        return fail_key(L, m, rm ? "mass" : "density",
+                        "only for motion: dynamic (a static or kinematic body's motion is given, "
+                        "not computed from forces)");
     return 0;
 }
 
