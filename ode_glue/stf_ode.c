@@ -250,9 +250,21 @@ static int shape_of_geom(dGeomID g, stf_collider_def *d)
     }
 }
 
+/* 1 when geom g is attached already (a second collider would double its forces). */
+static int is_attached(const stf_ode *c, dGeomID g)
+{
+    for (int k = 0; k < c->n; k++)
+        if (c->att[k].geom == g) return 1;
+    return 0;
+}
+
 static int attach(stf_ode *c, dGeomID g, stf_collider_def *cd, const stf_ode_attach_def *def,
                   char *err, size_t errlen)
 {
+    if (is_attached(c, g)) {
+        snprintf(err, errlen, "geom %p is attached already", (void *)g);
+        return -1;
+    }
     stf_ode_attach_def ad = def ? *def : stf_ode_default_attach_def();
     if (stf_ode_check_attach_def(&ad, err, errlen) != 0) return -1;
     cd->friction = ad.friction;
@@ -299,6 +311,23 @@ int stf_ode_attach_body(stf_ode *c, dBodyID body, const stf_ode_attach_def *def,
     if (!body) {
         snprintf(err, errlen, "body is 0: attach a body made with dBodyCreate");
         return -1;
+    }
+    /* every geom checked before any is attached: a body is attached whole or not at all */
+    stf_ode_attach_def ad = def ? *def : stf_ode_default_attach_def();
+    if (stf_ode_check_attach_def(&ad, err, errlen) != 0) return -1;
+    for (dGeomID g = dBodyGetFirstGeom(body); g; g = dBodyGetNextGeom(g)) {
+        stf_collider_def cd = stf_default_collider_def();
+        if (shape_of_geom(g, &cd) != 0) {
+            snprintf(err, errlen, "geom class %d of the body: no fluid collider (nothing "
+                     "attached; attach its geoms one by one, convex ones with "
+                     "stf_ode_attach_convex)", dGeomGetClass(g));
+            return -1;
+        }
+        if (is_attached(c, g)) {
+            snprintf(err, errlen, "the body's geom %p is attached already (nothing attached)",
+                     (void *)g);
+            return -1;
+        }
     }
     int attached = 0;
     for (dGeomID g = dBodyGetFirstGeom(body); g; g = dBodyGetNextGeom(g)) {

@@ -113,7 +113,9 @@ STF_API int stf_ode_set_step(stf_ode *c, const stf_ode_step_def *def, char *err,
 STF_API void stf_ode_set_collide(stf_ode *c, stf_ode_collide_fn fn, void *data);
 
 /* Couples every geom of body (sphere, box, capsule, cylinder, plane; convex via
- * stf_ode_attach_convex). def may be NULL for the defaults. Returns 0, -1 with err. */
+ * stf_ode_attach_convex). def may be NULL for the defaults. Returns 0, -1 with err: a geom of
+ * another class, or one attached already, and nothing is attached. A geom is attached at
+ * most once (each attach function refuses a second time). */
 STF_API int stf_ode_attach_body(stf_ode *c, dBodyID body, const stf_ode_attach_def *def, char *err,
                         size_t errlen);
 /* Couples one geom; a geom with no body is a fixed wall. */

@@ -770,6 +770,7 @@ const char *stf_fluid_failure(const stf_fluid *f) { return f->failure; }
 /* ------------------------------------------------------------------ read access */
 
 int stf_fluid_count(const stf_fluid *f) { return f->n; }
+int stf_fluid_collider_count(const stf_fluid *f) { return f->ncolliders; }
 double stf_fluid_particle_mass(const stf_fluid *f) { return f->mass; }
 double stf_fluid_time(const stf_fluid *f) { return f->time; }
 long stf_fluid_steps(const stf_fluid *f) { return f->steps; }

@@ -353,6 +353,8 @@ STF_API int stf_fluid_add_particle(stf_fluid *f, const double x[3], const double
 
 /* Colliders: solids the particles cannot enter. Returns an id >= 0, or -1 with err. */
 STF_API int stf_fluid_add_collider(stf_fluid *f, const stf_collider_def *def, char *err, size_t errlen);
+/* How many colliders the fluid has (the ids are 0 .. count - 1). */
+STF_API int stf_fluid_collider_count(const stf_fluid *f);
 /* Sets a collider's pose (position m, rotation 3x3 row-major body->world) and its velocity
  * (linear m/s at the position, angular rad/s). */
 STF_API void stf_fluid_set_collider_state(stf_fluid *f, int id, const double pos[3], const double rot[9],

@@ -608,6 +608,35 @@ static void test_angular_momentum_blob(void)
           r[3]);
 }
 
+/* A geom is attached once: a second attach of the body or its geom is refused, and a body
+ * with a geom the fluid cannot collide with (a ray) is refused whole, its other geoms not
+ * attached (the fluid's collider count is unchanged). */
+static void test_attach_once(void)
+{
+    dWorldID w = dWorldCreate();
+    dSpaceID s = dHashSpaceCreate(0);
+    stf_fluid *f = make_fluid(STF_EFFECT_PRESSURE, 0.01, 0.2);
+    dBodyID ball = make_sphere(w, s, 0.02, 0.3, (double[3]){0, 0, 0.2});
+    stf_ode *c = stf_ode_create(w, s, f);
+    char err[256];
+    CHECK(stf_ode_attach_body(c, ball, NULL, err, sizeof err) == 0, "%s", err);
+    int n = stf_fluid_collider_count(f);
+    CHECK(stf_ode_attach_body(c, ball, NULL, err, sizeof err) == -1 && strstr(err, "already"),
+          "a second attach of the body: accepted (%s)", err);
+    CHECK(stf_ode_attach_geom(c, dBodyGetFirstGeom(ball), NULL, err, sizeof err) == -1,
+          "a second attach of its geom: accepted");
+    dBodyID two = make_sphere(w, s, 0.02, 0.3, (double[3]){0.1, 0, 0.2});
+    dGeomSetBody(dCreateRay(s, 0.1), two);
+    CHECK(stf_ode_attach_body(c, two, NULL, err, sizeof err) == -1 && strstr(err, "nothing attached"),
+          "a body with a ray: %s", err);
+    CHECK(stf_fluid_collider_count(f) == n, "colliders %d after the refusals, want %d",
+          stf_fluid_collider_count(f), n);
+    stf_ode_destroy(c);
+    stf_fluid_destroy(f);
+    dSpaceDestroy(s);
+    dWorldDestroy(w);
+}
+
 int main(void)
 {
     dInitODE2(0);
@@ -620,6 +649,7 @@ int main(void)
     test_archimedes();
     test_archimedes_sphere();
     test_resting_sphere();
+    test_attach_once();
     dCloseODE();
     return test_result("test_coupling");
 }
