@@ -212,6 +212,10 @@ int stf_fluid_check_def(const stf_fluid_def *d, char *err, size_t errlen, const 
         BAD("spring_damping", "damping: must be in [0, 1] s (got %g)", d->spring_damping);
     if (d->spring_damping > 0 && d->relaxation != STF_RELAX_GAUSS_SEIDEL)
         BAD("spring_damping", "damping: needs relaxation gauss_seidel");
+    if (d->spring_passive != 0 && d->spring_passive != 1)
+        BAD("spring_passive", "passive: must be true or false (got %d)", d->spring_passive);
+    if (d->spring_passive && (d->effects & STF_EFFECT_SPRINGS) && !(d->effects & STF_EFFECT_HISTORY))
+        BAD("spring_passive", "passive: needs effects.history (without it no spring stiffens)");
     if (!(d->iterations >= 1 && d->iterations <= 64))
         BAD("iterations", "iterations: must be in [1, 64] (got %d)", d->iterations);
     if (d->effects & STF_EFFECT_HISTORY) {
@@ -349,6 +353,7 @@ void stf_fluid_destroy(stf_fluid *f)
     free(f->rho);
     free(f->rho_near);
     free(f->khist_mean);
+    free(f->Dprev);
     free(f->field_w);
     free(f->field_v);
     stf_grid_free(&f->grid);
@@ -390,6 +395,7 @@ static int reserve(stf_fluid *f, int n)
     }
     if (has(f, STF_EFFECT_HISTORY)) {
         if (grow((void **)&f->khist_mean, sizeof(float), cap)) return -1;
+        if (f->def.spring_passive && grow((void **)&f->Dprev, 3 * sizeof(double), cap)) return -1;
         if (f->hist.n_alloc == 0 && f->hist.w == NULL) {
             /* the window is fixed at the first step, when dt is known */
         } else if (stf_history_resize(&f->hist, cap)) {
@@ -577,6 +583,14 @@ int stf_fluid_permute(stf_fluid *f, const int32_t *perm)
         for (int i = 0; i < n; i++) k[i] = f->khist_mean[perm[i]];
         memcpy(f->khist_mean, k, (size_t)n * sizeof *k);
     }
+    if (f->Dprev && f->Dprev_ok) {
+        double *t = malloc(3 * (size_t)n * sizeof *t + 1);
+        if (!t) return -1;
+        for (int i = 0; i < n; i++)
+            for (int a = 0; a < 3; a++) t[3 * i + a] = f->Dprev[3 * (size_t)perm[i] + (size_t)a];
+        memcpy(f->Dprev, t, 3 * (size_t)n * sizeof *t);
+        free(t);
+    }
     if (f->springs.n_alloc) stf_springs_permute(&f->springs, perm, inv, n);
     grid_invalidate(&f->grid); /* its candidate lists hold the old indices */
     int rc = f->hist.n_alloc ? stf_history_permute(&f->hist, perm, n) : 0;
@@ -720,7 +734,14 @@ int stf_fluid_step(stf_fluid *f, double dt)
                 vh = f->dx;
             }
             if (stf_history_push(&f->hist, vh, n) != 0) goto oom;
+            if (f->Dprev && f->Dprev_ok == 1)
+                memcpy(f->Dprev, f->hist.D, 3 * (size_t)n * sizeof *f->Dprev);
+            else if (f->Dprev_ok == 2) f->Dprev_ok = 1; /* resumed: Dprev came from the checkpoint */
             stf_history_derivative(&f->hist, n);
+            if (f->Dprev && !f->Dprev_ok) { /* the first step: no stiffness before it */
+                memcpy(f->Dprev, f->hist.D, 3 * (size_t)n * sizeof *f->Dprev);
+                f->Dprev_ok = 1;
+            }
         });
     }
     if (has(f, STF_EFFECT_GRAVITY)) {
@@ -797,6 +818,7 @@ void stf_fluid_reset_clock(stf_fluid *f)
 void stf_fluid_forget_history(stf_fluid *f)
 {
     if (f->hist.n_alloc || f->hist.w) stf_history_free(&f->hist); /* re-made at the next step */
+    f->Dprev_ok = 0;
     if (f->khist_mean) memset(f->khist_mean, 0, (size_t)f->cap * sizeof *f->khist_mean);
 }
 
@@ -914,7 +936,7 @@ int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
         "sigma: %.9g  # 1/s\nbeta: %.9g  # 1/m\nk: %.9g  # m/s^2\nk_near: %.9g  # m/s^2\n"
         "tension: %s\nrest: %s\nrest_density: %.9g  # kernel sum\nrest_near_density: %.9g  # kernel sum\n"
         "k_min: %.9g  # 1/s^2\nyield_ratio: %.9g\nplasticity: %.9g  # 1/s\nliquid_plasticity: %.9g  # 1/s\n"
-        "relaxation: %s\niterations: %d\nspring_damping: %.9g  # s\nq: %.9g\n"
+        "relaxation: %s\niterations: %d\nspring_damping: %.9g  # s\nspring_passive: %s\nq: %.9g\n"
         "history_mode: %s\nhistory_velocity: %s\nhistory_smoothing: %.9g  # m (0: the kernel's neighbours)\nhistory_steps: %d  # at the first step (with memory: memory / dt)\n"
         "memory: %.9g  # s (0: history_steps as given)\nk_hist: %.9g  # 1/s^2 per m/s^q\n"
         "reference_spacing: %.9g  # m\nk_onset: %.9g  # 1/s^2\n"
@@ -924,7 +946,7 @@ int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
         d->rest_packing == STF_REST_LIQUID ? "liquid" : "lattice", f->rest_density, f->rest_near, d->k_min, d->yield_ratio, d->plasticity,
         d->liquid_plasticity >= 0 ? d->liquid_plasticity : d->plasticity,
         d->relaxation == STF_RELAX_GAUSS_SEIDEL ? "gauss_seidel" : "jacobi", d->iterations,
-        d->spring_damping, d->q,
+        d->spring_damping, d->spring_passive ? "true" : "false", d->q,
         d->history_mode == STF_HISTORY_FULL  ? "full"
         : d->history_mode == STF_HISTORY_SOE ? "soe"
                                              : "window",

@@ -176,6 +176,7 @@ spring_ops(const stf_fluid *f, int i, const int32_t *js, const double *L0s, int 
     double gamma = f->def.yield_ratio, alpha = f->def.plasticity, dtn = f->dt_now;
     double alpha_liq = f->def.liquid_plasticity >= 0 ? f->def.liquid_plasticity : alpha;
     const double *x = f->x, *D = f->hist.D;
+    const double *Dp = f->Dprev && f->Dprev_ok ? f->Dprev : NULL; /* springs.passive */
     double xi = x[3 * i], yi = x[3 * i + 1], zi = x[3 * i + 2];
     double Dxi = 0, Dyi = 0, Dzi = 0;
     if (hist) Dxi = D[3 * i], Dyi = D[3 * i + 1], Dzi = D[3 * i + 2];
@@ -196,6 +197,13 @@ spring_ops(const stf_fluid *f, int i, const int32_t *js, const double *L0s, int 
         } else {
             /* a spring below the onset creeps at the liquid's rate (liquid_plasticity) */
             L = plastic_rest(L0s[e], r, gamma, kh > 0 ? alpha : alpha_liq, dtn);
+            if (hist && Dp) { /* springs.passive: a stiffer spring keeps its energy */
+                double px = Dp[3 * i] - Dp[3 * j], py = Dp[3 * i + 1] - Dp[3 * j + 1],
+                       pz = Dp[3 * i + 2] - Dp[3 * j + 2];
+                double ko = khist_scale * sqrt(px * px + py * py + pz * pz);
+                ko = ko > onset ? ko - onset : 0.0;
+                if (kh > ko) L = r - (r - L) * sqrt((k_min + ko) / (k_min + kh));
+            }
             brk = (double)(L > h);
         }
         double kij = k_min + kh;

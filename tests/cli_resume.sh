@@ -198,6 +198,13 @@ stop_run KILL cy.h5 $(($(stat -c %s cy_ref.h5) / 2)) run "$cy" -o cy.h5 --durati
 resume cy.h5
 same cy_ref.h5 cy.h5 "carreau_yasuda"
 
+# springs.passive: the last step's history derivative is in the checkpoint
+pv=(--set effects.springs.passive=true)
+"$stf" run "$scene" -o pv_ref.h5 --duration 1 --quiet --checkpoint off "${pv[@]}" || fail "passive reference"
+stop_run KILL pv.h5 $(($(stat -c %s pv_ref.h5) / 2)) run "$scene" -o pv.h5 --duration 1 --checkpoint 0 "${pv[@]}"
+resume pv.h5
+same pv_ref.h5 pv.h5 "springs.passive"
+
 # the Clavet fluid with the projection as its pressure (its warm-start pressures are in the
 # checkpoint and follow the particles' reordering)
 pj=(--set fluid.settle=0 --unset effects.pressure.k --unset effects.pressure.k_near --unset effects.pressure.rest

@@ -471,6 +471,7 @@ static const struct def_key {
     {"plasticity", "effects.springs.plasticity", NULL},
     {"liquid_plasticity", "effects.springs.liquid_plasticity", NULL},
     {"spring_damping", "effects.springs.damping", NULL},
+    {"spring_passive", "effects.springs.passive", NULL},
     {"q", "effects.history.q", NULL},
     {"d", "effects.history.d", NULL},
     {"memory", "effects.history.memory", NULL},
@@ -805,6 +806,7 @@ static int parse_effect_params(loader *L, int e, const mapv *p)
         if (get_num(L, p, "k_min", R_ANY, &f->k_min) < 0) return SCENE_BAD;
         if (get_num(L, p, "yield_ratio", R_ANY, &f->yield_ratio) < 0) return SCENE_BAD;
         if (get_num(L, p, "damping", R_ANY, &f->spring_damping) < 0) return SCENE_BAD;
+        if (get_bool(L, p, "passive", &f->spring_passive) < 0) return SCENE_BAD;
         int r = get_num(L, p, "liquid_plasticity", R_ANY, &f->liquid_plasticity);
         if (r < 0) return SCENE_BAD;
         /* < 0 is the def's "as plasticity": a scene says that by leaving the key out */
@@ -826,7 +828,7 @@ static const char *const viscosity_keys[] = {"sigma", "beta", NULL};
 static const char *const pressure_keys[] = {"k", "k_near", "rest_density", "rest", "tension", "mode",
                                             "eta", "solver", "wall_pressure", "min_iterations",
                                             "max_iterations", "warm_start", NULL};
-static const char *const springs_keys[] = {"k_min", "yield_ratio", "plasticity", "liquid_plasticity", "damping", NULL};
+static const char *const springs_keys[] = {"k_min", "yield_ratio", "plasticity", "liquid_plasticity", "damping", "passive", NULL};
 static const char *const history_keys[] = {"q", "d", "memory", "k_hist", "mode", "reference_spacing", "terms", "k_onset", "velocity", "smoothing", NULL};
 static const char *const stick_keys[] = {"stick", NULL};
 static const char *const cy_keys[] = {"mu0", "mu_inf", "K", "alpha", "n", "eta",
