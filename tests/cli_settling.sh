@@ -12,9 +12,9 @@
 #   cli_body_sweep.
 # - its speed over the second half within 15 % of Stokes' law with the wall factor of
 #   W. L. Haberman and R. M. Sayre (1958) for the tube of the tank's cross-section (measured
-#   -1.3 %; tests/README.md has the resolution study: +6.4 % to -12.2 % from 1.5 to 3
-#   spacings of radius over 0.1-0.6 s, the error growing with resolution as the fluid column
-#   breathes, "Drag of a settling sphere").
+#   -5.0 %; tests/README.md has the resolution study, "Drag of a settling sphere": +16.2 %,
+#   -5.0 %, -3.5 % at 1.5, 2, 3 spacings of radius; the drag still grows as the step
+#   shrinks).
 # Args: STF_BINARY PROJECT_DIR
 . "$(dirname "$0")/lib_cli.sh" cli_settling "$@"
 stf=$STF; src=$PROJ
