@@ -61,7 +61,7 @@ static const char *const full_scene =
     "  - name: crate\n"                                          /* 46 */
     "    shape: box\n"                                           /* 47 */
     "    size: [0.1, 0.2, 0.3]\n"                                /* 48 */
-    "    density: 500\n"                                         /* 49 */
+    "    stick: false\n"                                         /* 49 */
     "    motion: static\n"                                       /* 50 */
     "  - name: rod\n"                                            /* 51 */
     "    shape: capsule\n"                                       /* 52 */
@@ -170,7 +170,6 @@ static void check_full_values(const stf_scene *s, int original)
     b = &s->bodies[1];
     CHECK(b->shape.shape == STF_SHAPE_BOX && b->motion == STF_MOTION_STATIC, "crate");
     CHECK_NEAR(b->shape.half[2], 0.15, 1e-15, "half extent");
-    CHECK_NEAR(b->density, 500, 0, "density");
     CHECK_NEAR(b->shape.friction, 0.2, 0, "default friction");
     CHECK(b->shape.stick == 0, "default stick");
     CHECK_NEAR(b->quaternion[0], 1, 0, "default rotation");
@@ -262,7 +261,7 @@ static void test_errors(void)
                  "t.yaml:10:1: colour: unknown key (allowed: name, duration, dt", "expect)");
     EXPECT_ERROR(
         MIN_HEAD "effects:\n  springs: {k_mn: 1}\n",
-        "t.yaml:8:13: effects.springs.k_mn: unknown key (allowed: k_min, yield_ratio, plasticity, liquid_plasticity, damping)",
+        "t.yaml:8:13: effects.springs.k_mn: unknown key (allowed: k_min, yield_ratio, plasticity, liquid_plasticity, damping, passive)",
         NULL);
     EXPECT_ERROR("duration: 1\nfluid:\n  spacing: -0.01\n",
                  "t.yaml:3:12: fluid.spacing: must be > 0", NULL);
@@ -373,6 +372,9 @@ static void test_errors(void)
     EXPECT_ERROR(MIN_HEAD MIN_EFFECTS
                  "bodies:\n  - {name: a, shape: sphere, radius: 1, mass: 1, density: 2}\n",
                  "bodies.0.density: give either mass or density", NULL);
+    EXPECT_ERROR(MIN_HEAD MIN_EFFECTS
+                 "bodies:\n  - {name: a, shape: sphere, radius: 1, density: 2, motion: static}\n",
+                 "bodies.0.density: only for motion: dynamic", NULL);
     EXPECT_ERROR(MIN_HEAD MIN_EFFECTS "bodies:\n  - {name: a, shape: sphere, radius: 1, mass: 1, "
                                       "vibration: {}}\n",
                  "bodies.0.vibration: only allowed with motion: kinematic", NULL);
