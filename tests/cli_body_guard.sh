@@ -42,17 +42,22 @@ PY
     fail "small_drop with its own ball: exit $? ($(cat ok.txt))"
 
 # --- interrupt latency -----------------------------------------------------------------------
+# term_latency WHAT: SIGTERM to $pid, waits for it; sets rc (its exit) and lat (s)
+term_latency() {
+    local t0 t1
+    t0=$(date +%s.%N)
+    kill -TERM $pid
+    wait $pid
+    rc=$?
+    t1=$(date +%s.%N)
+    lat=$(echo "$t1 - $t0" | bc)
+    echo "cli_body_guard: $1: $lat s"
+}
 "$stf" run "$src/tests/scenes/long_steps.yaml" -o long.h5 --quiet --threads 1 2>long.txt &
 pid=$!
 grown long.h5 $pid 300000 || fail "long_steps: the run ended before its first frame"
 sleep 1 # inside the first steps
-t0=$(date +%s.%N)
-kill -TERM $pid
-wait $pid
-rc=$?
-t1=$(date +%s.%N)
-lat=$(echo "$t1 - $t0" | bc)
-echo "cli_body_guard: SIGTERM to exit: $lat s"
+term_latency "SIGTERM to exit"
 [ $rc -eq 130 ] || fail "long_steps: exit $rc after SIGTERM, want 130 ($(cat long.txt))"
 grep -q "interrupted at t = " long.txt || fail "long_steps: no 'interrupted' message: $(cat long.txt)"
 [ "$(echo "$lat < 3" | bc)" -eq 1 ] || fail "long_steps: SIGTERM took $lat s to end the run (want < 3 s)"
@@ -72,13 +77,7 @@ PY
 pid=$!
 while kill -0 $pid 2>/dev/null && [ "$(awk '{print $14}' /proc/$pid/stat 2>/dev/null || echo 0)" -lt \
     "$(getconf CLK_TCK)" ]; do sleep 0.05; done
-t0=$(date +%s.%N)
-kill -TERM $pid
-wait $pid
-rc=$?
-t1=$(date +%s.%N)
-lat=$(echo "$t1 - $t0" | bc)
-echo "cli_body_guard: SIGTERM to exit while settling: $lat s"
+term_latency "SIGTERM to exit while settling"
 [ $rc -eq 130 ] || fail "settling: exit $rc after SIGTERM, want 130 ($(cat settle.txt))"
 grep -q "fluid.settle: interrupted while the fluid settled" settle.txt ||
     fail "settling: no message naming the settling: $(cat settle.txt)"
