@@ -101,6 +101,15 @@ rc=$?
 if [ $rc -ne 0 ]; then fail "stf plot exited $rc"; cat plot.err >&2
 else check_png p.png || fail "p.png is not a valid picture"; fi
 
+# --color khist on a run without history: a note, not a silent one-colour picture
+"$STF" run "$PROJ/tests/scenes/small_drop.yaml" -o nohist.h5 --quiet --threads 1 --duration 0.01 \
+    --unset effects.history --unset effects.boundary_stick >nohist.out 2>&1 ||
+    fail "stf run without history failed: $(tail -n 2 nohist.out)"
+"$STF" render nohist.h5 --color khist -o nohist --frames 0 >nohist.rout 2>&1 ||
+    fail "stf render --color khist without history failed: $(tail -n 2 nohist.rout)"
+grep -q "note: the history stiffness is 0" nohist.rout ||
+    fail "stf render --color khist without history says nothing: $(cat nohist.rout)"
+
 # a cylinder is drawn with flat ends, not as a capsule: the same radius and length, held
 # upright at t = 0, covers fewer rows of body colour as a cylinder than as a capsule (whose
 # round ends reach a radius further each way)

@@ -705,6 +705,9 @@ static int color_scale(const scene_view *v, const int *frames, int nf, int mode,
         p = vals[(size_t)floor(0.99 * (double)(cnt - 1))];
     }
     free(vals);
+    if (mode == COLOR_KHIST && !(p > 0)) /* said, not silently drawn in one colour */
+        fprintf(stderr, "stf render: note: the history stiffness is 0 in the chosen frames (a run "
+                        "without effects.history, or the Carreau-Yasuda model): one colour\n");
     *vmax = p > 0 ? p : 1;
     return 0;
 }
