@@ -131,8 +131,10 @@ STF_API int stf_ode_attach_convex(stf_ode *c, dGeomID geom, const double *points
 STF_API int stf_ode_attach_container(stf_ode *c, dBodyID body, const double pos[3], const double size[3],
                              double wall, const stf_ode_attach_def *def, char *err, size_t errlen);
 
-/* Removes particles that start inside attached solids (call before the first step).
- * Returns the number removed. */
+/* Removes the particles inside attached solids: before the first step, and after the app
+ * moves a body into the fluid between steps (the particles it lands on would otherwise be
+ * pushed out in one substep and throw it back; ode_glue/README.md). Returns the number
+ * removed. */
 STF_API int stf_ode_remove_overlaps(stf_ode *c);
 
 /* Advances fluid and world by dt seconds (> 0, finite) in stf_ode_substeps(c, dt) equal
