@@ -513,7 +513,16 @@ int stf_sim_step(stf_sim *s)
         if (sc->container.present && sc->container.motion == STF_MOTION_KINEMATIC)
             vibrate(s, s->container, sc->nbodies, &sc->container.vibration, s->container_base, t,
                     dt);
-        if (stf_ode_substep(s->coupler, dt) != 0) return -1;
+        if (stf_ode_substep(s->coupler, dt) != 0) {
+            /* named as a body's failure is: the run's step and the substep within it (the
+               fluid counts its own steps, one per substep) */
+            const char *c = stf_ode_failure(s->coupler), *fl = stf_fluid_failure(s->fluid);
+            int fluid = fl[0] && (!c[0] || !strcmp(c, fl));
+            snprintf(s->failure, sizeof s->failure, "step %ld (t = %.6g s, substep %d of %d): %s%s",
+                     s->steps + 1, s->time + (j + 1) * dt, j + 1, m, fluid ? "the fluid's " : "",
+                     fluid ? fl : c);
+            return -1;
+        }
         if (check_bodies(s, j, m, dt) != 0) return -1;
         for (int k = 0; k < sc->nbodies; k++) {
             double f[3], torque[3];

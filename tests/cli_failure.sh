@@ -15,6 +15,9 @@ rc=$?
 [ $rc -eq 3 ] || fail "blow-up: exit $rc, want 3"
 grep -q "step 1 " err.txt && grep -q "particle [0-9]" err.txt && grep -q "effect 'pressure'" err.txt ||
   { cat err.txt; fail "blow-up message does not name step, particle and effect"; }
+# the run's step and substep first, as a body's failure names them; then the fluid's own count
+grep -q "step 1 (t = 0.005 s, substep 1 of 1): the fluid's step 1 " err.txt ||
+  { cat err.txt; fail "blow-up message does not name the run's step and substep"; }
 /usr/bin/python3 - <<'PY' || fail "blow.h5: last good frame not readable"
 import h5py, numpy as np
 f = h5py.File("blow.h5", "r")
