@@ -417,6 +417,7 @@ int stf_fluid_add_particle(stf_fluid *f, const double x[3], const double v[3])
     }
     f->id[i] = f->next_id++;
     if (f->khist_mean) f->khist_mean[i] = 0;
+    if (f->Dprev) memset(f->Dprev + 3 * (size_t)i, 0, 3 * sizeof *f->Dprev);
     if (f->springs.n_alloc) f->springs.count[i] = 0, f->springs.complete[i] = 0;
     return i;
 }
@@ -734,9 +735,6 @@ int stf_fluid_step(stf_fluid *f, double dt)
                 vh = f->dx;
             }
             if (stf_history_push(&f->hist, vh, n) != 0) goto oom;
-            if (f->Dprev && f->Dprev_ok == 1)
-                memcpy(f->Dprev, f->hist.D, 3 * (size_t)n * sizeof *f->Dprev);
-            else if (f->Dprev_ok == 2) f->Dprev_ok = 1; /* resumed: Dprev came from the checkpoint */
             stf_history_derivative(&f->hist, n);
             if (f->Dprev && !f->Dprev_ok) { /* the first step: no stiffness before it */
                 memcpy(f->Dprev, f->hist.D, 3 * (size_t)n * sizeof *f->Dprev);
@@ -760,6 +758,8 @@ int stf_fluid_step(stf_fluid *f, double dt)
         int rc = 0;
         TIMED(STAGE_SPRINGS, rc = stf_springs_step(f, dt));
         if (rc != 0) goto oom;
+        if (f->Dprev_ok) /* springs.passive: this step's D is the next step's "before" */
+            memcpy(f->Dprev, f->hist.D, 3 * (size_t)n * sizeof *f->Dprev);
         if (stf_fluid_check(f, has(f, STF_EFFECT_HISTORY) ? "history springs" : "springs")) return -1;
     }
     if (has(f, STF_EFFECT_PRESSURE)) {

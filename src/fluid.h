@@ -47,8 +47,7 @@ struct stf_fluid {
     double *rho, *rho_near; /* n each, pressure effect only */
     float *khist_mean;      /* n: mean history stiffness of a particle's springs, 1/s^2 */
     double *Dprev;          /* 3n, springs.passive: the history's D of the step before */
-    int Dprev_ok;           /* 1 when Dprev holds it (not at the history's first step); 2 when
-                               a checkpoint put the last step's D there */
+    int Dprev_ok;           /* 1 when Dprev holds it (not before the history's first step) */
     double *field_w, *field_v; /* history.smoothing's lattice: weights and velocity sums */
     size_t field_cap;          /* nodes allocated */
 

@@ -84,8 +84,7 @@ int stf_fluid_save_state(const stf_fluid *f, stf_state *s)
     stf_state_put(s, "fluid.id", I32, (size_t)n, f->id);
     if (f->khist_mean) stf_state_put(s, "fluid.khist_mean", F32, (size_t)n, f->khist_mean);
     /* springs.passive: the last step's history derivative, the next step's "before" */
-    if (f->Dprev && f->Dprev_ok && f->hist.D)
-        stf_state_put(s, "fluid.Dprev", F64, 3 * (size_t)n, f->Dprev_ok == 2 ? f->Dprev : f->hist.D);
+    if (f->Dprev && f->Dprev_ok) stf_state_put(s, "fluid.Dprev", F64, 3 * (size_t)n, f->Dprev);
     if (f->rho) {
         stf_state_put(s, "fluid.rho", F64, (size_t)n, f->rho);
         stf_state_put(s, "fluid.rho_near", F64, (size_t)n, f->rho_near);
@@ -226,7 +225,7 @@ int stf_fluid_load_state(stf_fluid *f, const stf_state *s, char *err, size_t err
     f->Dprev_ok = 0;
     if (f->Dprev && stf_state_find(s, "fluid.Dprev", F64, 3 * N)) {
         if (stf_state_get(s, "fluid.Dprev", F64, 3 * N, f->Dprev, err, errlen)) return -1;
-        f->Dprev_ok = 2; /* holds the last step's D already: the next step keeps it */
+        f->Dprev_ok = 1;
     }
     f->next_id = (int)next_id;
     f->steps = (long)steps;

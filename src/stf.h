@@ -243,7 +243,7 @@ typedef struct stf_fluid_def {
                               k (r - L)^2 / 2 does not rise with the stiffness (src/springs.c).
                               Eq. 6 as written stiffens a compressed spring and gives back more
                               than it took: a steel ball at 8 m/s onto 6 cm of the cornstarch
-                              over a floor leaves at 8.33 m/s (2.46 m/s passive) */
+                              over a floor leaves at 8.33 m/s (2.36 m/s passive) */
     /* history (Eq. 3-6): k = k_min + k_hist * dt^(1-q)/Gamma(3-q) * |sum a (v_i - v_j)| */
     double q;              /* fractional order, in (0,1) */
     int d;                 /* history window, steps (1 .. 100000); ignored if memory > 0 */
