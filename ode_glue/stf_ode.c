@@ -312,9 +312,8 @@ int stf_ode_attach_body(stf_ode *c, dBodyID body, const stf_ode_attach_def *def,
         snprintf(err, errlen, "body is 0: attach a body made with dBodyCreate");
         return -1;
     }
-    /* every geom checked before any is attached: a body is attached whole or not at all */
-    stf_ode_attach_def ad = def ? *def : stf_ode_default_attach_def();
-    if (stf_ode_check_attach_def(&ad, err, errlen) != 0) return -1;
+    /* every geom checked before any is attached: a body is attached whole or not at all (a
+       bad def fails the first attach, before anything is attached) */
     for (dGeomID g = dBodyGetFirstGeom(body); g; g = dBodyGetNextGeom(g)) {
         stf_collider_def cd = stf_default_collider_def();
         if (shape_of_geom(g, &cd) != 0) {
@@ -721,12 +720,11 @@ int stf_ode_settle_until(stf_ode *c, double dt, int steps, double tau,
         sync_collider(c, &c->att[k]);
         stf_fluid_hold_collider(c->fluid, c->att[k].collider);
     }
-    double keep = exp(-dt / tau);
     for (int s = 0; s < steps; s++) {
         /* split as a step of the run is (stf_ode_substeps): a scene's dt that its run
            takes in substeps is no stabler while the fluid settles */
         int m = stf_ode_substeps(c, dt);
-        double sub = dt / m, keep_sub = m == 1 ? keep : exp(-sub / tau);
+        double sub = dt / m, keep_sub = exp(-sub / tau);
         for (int j = 0; j < m; j++) {
             if (stop && stop(arg)) return 1;
             if (stf_fluid_step(c->fluid, sub) != 0) {

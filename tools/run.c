@@ -322,12 +322,10 @@ static int hold_expectations(const stf_scene *sc, const stf_metrics *m)
             failed++;
             continue;
         }
-        if (isnan(v)) /* as stf report says it */
-            printf("%s  %-28s  measured %-12s expected %s %g\n", ok ? "pass" : "FAIL", e->key,
-                   "never", e->op, e->value);
-        else
-            printf("%s  %-28s  measured %-12.6g expected %s %g\n", ok ? "pass" : "FAIL", e->key,
-                   v, e->op, e->value);
+        char measured[32] = "never"; /* a null metric, as stf report says it */
+        if (!isnan(v)) snprintf(measured, sizeof measured, "%.6g", v);
+        printf("%s  %-28s  measured %-12s expected %s %g\n", ok ? "pass" : "FAIL", e->key,
+               measured, e->op, e->value);
         failed += !ok;
     }
     return failed;
