@@ -629,16 +629,13 @@ static int parse_blocks(loader *L, const mapv *fluid)
                     return fail_value(L, &bm, "max", "must be > min in every component");
             }
         }
-        for (int j = 0; j < i && !L->s->blocks_note[0]; j++)
-            if (blocks_overlap(b, &L->s->blocks[j])) {
-                int line = 1, col = 1;
-                node_mark(item, &line, &col);
-                snprintf(L->s->blocks_note, sizeof L->s->blocks_note,
-                         "%s:%d:%d: %s overlaps fluid.blocks.%d: the particles they share sit on "
-                         "each other (twice the density there)", L->file, line, col, path, j);
-            }
         b->line = b->col = 1;
         node_mark(item, &b->line, &b->col);
+        for (int j = 0; j < i && !L->s->blocks_note[0]; j++)
+            if (blocks_overlap(b, &L->s->blocks[j]))
+                snprintf(L->s->blocks_note, sizeof L->s->blocks_note,
+                         "%s:%d:%d: %s overlaps fluid.blocks.%d: the particles they share sit on "
+                         "each other (twice the density there)", L->file, b->line, b->col, path, j);
         L->s->nblocks = i + 1;
     }
     return 0;
