@@ -528,48 +528,41 @@ static int collide_one(stf_fluid *f, const collider *c, int i, double dt, double
         x[a] += proj[3 * i + a];
         f->xprev[3 * i + a] += proj[3 * i + a];
     }
-    double old[3] = {x[0], x[1], x[2]};
+    /* The stop: a particle still approaching (a wall moving into the fluid) takes the
+       surface's normal velocity. The projection above has already taken the step's approach
+       back (the particle is at the contact radius), so the stop moves xprev, not x: the
+       particle stays at the contact radius. Moving x as well stopped it twice: it ended dt |vn|
+       beyond the contact radius, at rest, so the wall layers were lifted on every substep by an
+       amount in phase with the pressure on them. In the Carreau-Yasuda model that lift drove
+       a still column's vertical mode (the held sphere's tank of 3 spacings without the sphere:
+       the fluid's mean vertical velocity swung by 23 mm/s sd, period 30 ms, not decaying over
+       0.8 s; held spheres' force sd 0.95-2.1 rho V g, 0.03-0.30 rho V g without the lift) and
+       was a slip layer of thickness ~ |vn| dt (cli_settling's sphere: -1.3%, -13.8%, -24.6%
+       at dt 2, 1, 0.5 ms with it). The velocity change and the impulse are the same. */
     double jn = 0; /* normal velocity change, m/s */
     double vb[3], vrel[3];
     stf_collider_velocity_at(c, x, vb);
     for (int a = 0; a < 3; a++) vrel[a] = (x[a] - f->xprev[3 * i + a]) / dt - vb[a];
     double vn = vrel[0] * nrm[0] + vrel[1] * nrm[1] + vrel[2] * nrm[2];
-    if (vn < 0) { /* still approaching (a wall moving into the fluid): stop it */
-        for (int a = 0; a < 3; a++) x[a] -= dt * vn * nrm[a];
-        jn -= vn;
+    if (vn < 0) {
+        jn = -vn;
+        for (int a = 0; a < 3; a++) {
+            double e = dt * vn * nrm[a];
+            f->xprev[3 * i + a] += e;
+            proj[3 * i + a] += e;
+        }
     }
-    double vt[3], vt2 = 0;
+    double vt[3], vt2 = 0, cut = 0;
     for (int a = 0; a < 3; a++) {
         vt[a] = vrel[a] - vn * nrm[a];
         vt2 += vt[a] * vt[a];
     }
     if (vt2 > 0) {
-        double cut = c->def.friction * jn / sqrt(vt2);
+        cut = c->def.friction * jn / sqrt(vt2);
         if (cut > 1) cut = 1;
         for (int a = 0; a < 3; a++) x[a] -= dt * cut * vt[a];
     }
-    for (int a = 0; a < 3; a++) imp[3 * i + a] = f->mass * (x[a] - old[a]) / dt;
-    /* Carreau-Yasuda: the stop above moves x out by dt |vn|, but the projection had already
-       taken the step's approach back (d = rp): the particle ended dt |vn| beyond the contact
-       radius, at rest (xprev moved along). Under pressure the wall layers are pushed on
-       every substep, so they were lifted each substep by an amount in phase with the
-       pressure: work that drove a still column's vertical mode (the held sphere's tank of 3
-       spacings without the sphere: the fluid's mean vertical velocity swung by 23 mm/s sd,
-       period 30 ms, not decaying over 0.8 s; the collisions carried 0.24 to 2.50 N of the
-       column's 3.73 N over a cycle; held spheres' force sd 0.95-2.1 rho V g). Here the stop
-       moves xprev instead (the same velocity change and impulse) and the particle stays at
-       the contact radius: the column holds 0.28-0.43 mm/s, held spheres 0.03-0.30 rho V g.
-       The lift was also a slip layer of thickness ~ |vn| dt: cli_settling's sphere read -1.3%,
-       -13.8%, -24.6% at dt 2, 1, 0.5 ms with it and reads -15.5%, -18.8%, -26.7% without
-       (-10.0% with this at the tank's walls only, -7.3% at the sphere only). The Clavet model
-       keeps the stop as it was (its results are unchanged). */
-    if (f->def.model == STF_MODEL_CARREAU_YASUDA)
-        for (int a = 0; a < 3; a++) {
-            double e = -dt * jn * nrm[a];
-            x[a] += e;
-            f->xprev[3 * i + a] += e;
-            proj[3 * i + a] += e;
-        }
+    for (int a = 0; a < 3; a++) imp[3 * i + a] = f->mass * (jn * nrm[a] - cut * vt[a]);
     return 1;
 }
 

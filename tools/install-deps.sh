@@ -3,7 +3,7 @@
 # something is missing; then it runs apt-get itself if root, else through sudo.
 set -euo pipefail
 pkgs=(cmake make gcc pkg-config libode-dev libccd-dev libhdf5-dev libfyaml-dev libpng-dev
-      hdf5-tools python3 python3-h5py python3-numpy
+      hdf5-tools python3 python3-h5py python3-numpy python3-pil
       openmpi-bin libopenmpi-dev)  # optional for the build: `mpirun stf sweep` (12.5 MB)
 missing=()
 for p in "${pkgs[@]}"; do
