@@ -61,11 +61,12 @@ static int save_history(const stf_history *h, int n, stf_state *s)
     stf_state_put_i64(s, "history.window", h->window);
     stf_state_put_i64(s, "history.cap", h->cap);
     stf_state_put_i64(s, "history.head", h->head);
-    size_t row = (size_t)n * 3;
-    float *ring = malloc((size_t)h->cap * row * sizeof *ring + 1);
-    if (!ring) return -1;
-    stf_history_ring_get(h, ring, n); /* slot-major, particle order */
-    stf_state_put_owned(s, "history.ring", F32, (size_t)h->cap * row, ring);
+    /* the ring as it is, rows and their particles (a copy in particle order would cost the
+       half-gigabyte ring of the bowling ball twice, while an interrupted run waits) */
+    stf_state_put_i64(s, "history.rows", h->rows);
+    stf_state_put(s, "history.part", I32, (size_t)h->rows, h->part);
+    stf_state_put_rows(s, "history.ring", F32, (size_t)h->cap, 3 * (size_t)h->rows,
+                       3 * (size_t)h->n_alloc, h->ring);
     return 0;
 }
 
@@ -181,15 +182,26 @@ static int load_history(stf_fluid *f, const stf_state *s, char *err, size_t errl
         goto oom;
     h->pushed = (long)pushed;
     h->head = (int)head;
-    size_t row = (size_t)n * 3;
-    float *ring = malloc((size_t)cap * row * sizeof *ring + 1);
-    if (!ring) goto oom;
-    int rc = stf_state_get(s, "history.ring", F32, (size_t)cap * row, ring, err, errlen);
-    if (rc == 0 && stf_history_ring_set(h, ring, n) != 0) {
-        snprintf(err, errlen, "checkpoint: %d particles do not fit the history ring", n);
+    int64_t rows;
+    if (stf_state_get_i64(s, "history.rows", &rows, err, errlen)) return -1;
+    if (rows < n || rows > (int64_t)n + (1 << 24)) {
+        snprintf(err, errlen, "checkpoint: %ld history rows for %d particles", (long)rows, n);
+        return -1;
+    }
+    size_t row = (size_t)rows * 3;
+    const stf_state_entry *ring = stf_state_find(s, "history.ring", F32, (size_t)cap * row);
+    const stf_state_entry *part = stf_state_find(s, "history.part", I32, (size_t)rows);
+    if (!ring || !part) {
+        snprintf(err, errlen, "checkpoint: history.%s is missing or has the wrong type or size",
+                 ring ? "part" : "ring");
+        return -1;
+    }
+    int rc = 0;
+    if (stf_history_ring_set(h, ring->data, (int)rows, part->data, n) != 0) {
+        snprintf(err, errlen, "checkpoint: the history ring's rows do not name its %ld "
+                 "particles once each (or out of memory)", (long)rows);
         rc = -1;
     }
-    free(ring);
     return rc;
 oom:
     snprintf(err, errlen, "checkpoint: out of memory for the history");

@@ -632,24 +632,24 @@ int stf_history_permute(stf_history *h, const int *perm, int n)
     return 0;
 }
 
-void stf_history_ring_get(const stf_history *h, float *dst, int n)
+int stf_history_ring_set(stf_history *h, const float *src, int rows, const int *part, int n)
 {
-    size_t row = (size_t)n * 3, orow = (size_t)h->n_alloc * 3;
-    memset(dst, 0, (size_t)h->cap * row * sizeof *dst);
-    for (int s = 0; s < h->cap; s++)
-        for (int r = 0; r < h->rows; r++)
-            if (h->part[r] < n)
-                memcpy(dst + (size_t)s * row + 3 * (size_t)h->part[r],
-                       h->ring + (size_t)s * orow + 3 * (size_t)r, 3 * sizeof *dst);
-}
-
-int stf_history_ring_set(stf_history *h, const float *src, int n)
-{
-    if (n > h->n_alloc) return -1;
-    size_t row = (size_t)n * 3, orow = (size_t)h->n_alloc * 3;
-    for (int r = 0; r < h->n_alloc; r++) h->part[r] = r < n ? r : -1;
-    h->mapped = 0;
-    h->rows = n;
+    if (rows < n || stf_history_resize(h, rows) != 0) return -1;
+    /* part must name each of the particles 0 .. rows - 1 once */
+    char *seen = calloc((size_t)rows + 1, 1);
+    if (!seen) return -1;
+    int ok = 1, identity = 1;
+    for (int r = 0; r < rows && ok; r++) {
+        ok = part[r] >= 0 && part[r] < rows && !seen[part[r]];
+        if (ok) seen[part[r]] = 1;
+        identity &= part[r] == r;
+    }
+    free(seen);
+    if (!ok) return -1;
+    size_t row = (size_t)rows * 3, orow = (size_t)h->n_alloc * 3;
+    for (int r = 0; r < h->n_alloc; r++) h->part[r] = r < rows ? part[r] : -1;
+    h->mapped = !identity;
+    h->rows = rows;
     for (int s = 0; s < h->cap; s++) {
         float *dst = h->ring + (size_t)s * orow;
         memcpy(dst, src + (size_t)s * row, row * sizeof *dst);

@@ -69,11 +69,11 @@ int stf_history_simd(int level);
 /* Reorders particles: new index i takes old index perm[i] (n fewer than before: the others
  * are removed). perm may name particles added since the last push (no samples yet). */
 int stf_history_permute(stf_history *h, const int *perm, int n);
-/* The ring as a checkpoint stores it: cap slots of 3 n floats, slot s as the ring's slot s,
- * particles in their order (particles without a sample: zero). */
-void stf_history_ring_get(const stf_history *h, float *dst, int n);
-/* Loads that; n <= the particles the ring holds. 0 / -1. */
-int stf_history_ring_set(stf_history *h, const float *src, int n);
+/* A checkpoint stores the ring as it is: cap slots of the first 3 rows floats of each slot
+ * (rows in use: h->rows) and part (rows entries), written straight from the ring. This loads
+ * that into a history made for n <= rows particles; -1 when part does not name each of the
+ * particles 0 .. rows - 1 once, or out of memory. */
+int stf_history_ring_set(stf_history *h, const float *src, int rows, const int *part, int n);
 size_t stf_history_bytes(const stf_history *h);
 /* Full history: grows the ring to cap slots per particle (doubling, as pushes do), for a
  * checkpoint that had that many. 0 / -1. */

@@ -17,6 +17,9 @@ typedef struct stf_state_entry {
     int type;       /* stf_state_type */
     size_t count;   /* elements */
     const void *data;
+    /* rows > 0: data holds count / rows elements at each of rows row starts, stride
+       elements apart (a part of a wider array, written without a copy); 0: contiguous */
+    size_t rows, stride;
     void *owned;    /* data when the record owns it (read from a file), else NULL */
 } stf_state_entry;
 
@@ -30,6 +33,10 @@ size_t stf_state_type_size(int type);
 /* Adds an entry borrowing data (count elements of type). Marks the record failed when out
  * of memory or the name is too long. */
 void stf_state_put(stf_state *s, const char *name, int type, size_t count, const void *data);
+/* Adds an entry borrowing rows runs of len elements, their starts stride elements apart in
+ * data (stride >= len); stored as one array of rows * len elements. */
+void stf_state_put_rows(stf_state *s, const char *name, int type, size_t rows, size_t len,
+                        size_t stride, const void *data);
 /* Adds an entry that takes ownership of data (malloc'ed). */
 void stf_state_put_owned(stf_state *s, const char *name, int type, size_t count, void *data);
 void stf_state_put_f64(stf_state *s, const char *name, double v);   /* copies the value */

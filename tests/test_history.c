@@ -546,8 +546,10 @@ static void test_window_remove_out_of_memory(void)
 #endif
 }
 
-/* A checkpoint's copy of the ring (stf_history_ring_get, by particle) loaded into a new history
- * (stf_history_ring_set) after re-sorts: the sums that follow are bit for bit the same. */
+/* A checkpoint's copy of the ring (its rows in use, slot by slot, and their particles)
+ * loaded into a new history (stf_history_ring_set) after re-sorts of a ring long enough to
+ * be mapped: the sums that follow are bit for bit the same. A map that names a particle
+ * twice is refused. */
 static void test_window_ring_copy(void)
 {
     enum { NP = 30, D = 260, T = 400, SAVE = 310 };
@@ -564,10 +566,17 @@ static void test_window_ring_copy(void)
                       (t < SAVE || stf_history_permute(&b, perm, NP) == 0),
                   "re-sort");
         if (t == SAVE) {
+            CHECK(a.mapped && a.rows == NP, "the re-sorts map the rows");
             float *ring = malloc((size_t)a.cap * NP * 3 * sizeof *ring);
             CHECK(ring && stf_history_init(&b, q, D, NP) == 0, "init the copy");
-            stf_history_ring_get(&a, ring, NP);
-            CHECK(stf_history_ring_set(&b, ring, NP) == 0, "ring_set");
+            for (int s = 0; s < a.cap; s++)
+                memcpy(ring + (size_t)s * NP * 3, a.ring + (size_t)s * (size_t)a.n_alloc * 3,
+                       NP * 3 * sizeof *ring);
+            int twice[NP];
+            memcpy(twice, a.part, sizeof twice);
+            twice[1] = twice[0];
+            CHECK(stf_history_ring_set(&b, ring, NP, twice, NP) != 0, "a particle named twice");
+            CHECK(stf_history_ring_set(&b, ring, NP, a.part, NP) == 0, "ring_set");
             b.pushed = a.pushed, b.head = a.head;
             free(ring);
         }

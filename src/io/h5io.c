@@ -1563,14 +1563,23 @@ static hid_t state_mem_type(int type)
 static int write_entry(hid_t g, const stf_state_entry *e)
 {
     hsize_t n = e->count;
-    hid_t space = H5Screate_simple(1, &n, NULL);
-    hid_t d = space < 0 ? -1
-                        : H5Dcreate2(g, e->name, state_file_type(e->type), space, H5P_DEFAULT,
-                                     H5P_DEFAULT, H5P_DEFAULT);
-    int rc = d >= 0 && (n == 0 || H5Dwrite(d, state_mem_type(e->type), H5S_ALL, H5S_ALL,
+    hid_t space = H5Screate_simple(1, &n, NULL), mem = H5S_ALL;
+    if (e->rows > 0 && n > 0) { /* rows runs of n / rows elements, stride apart */
+        hsize_t dims[2] = {e->rows, e->stride}, start[2] = {0, 0}, count[2] = {e->rows, n / e->rows};
+        mem = H5Screate_simple(2, dims, NULL);
+        if (mem < 0 || H5Sselect_hyperslab(mem, H5S_SELECT_SET, start, NULL, count, NULL) < 0) {
+            close_id(mem);
+            mem = -1;
+        }
+    }
+    hid_t d = space < 0 || mem < 0 ? -1
+                                   : H5Dcreate2(g, e->name, state_file_type(e->type), space,
+                                                H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    int rc = d >= 0 && (n == 0 || H5Dwrite(d, state_mem_type(e->type), mem, H5S_ALL,
                                            H5P_DEFAULT, e->data) >= 0)
                  ? 0 : -1;
     close_id(d);
+    if (mem != H5S_ALL) close_id(mem);
     close_id(space);
     return rc;
 }
