@@ -631,3 +631,31 @@ int stf_collider_extent(const stf_collider_def *def, double *inradius, double *b
     stf_collider_free(&c);
     return *bound < 0 ? -1 : 0;
 }
+
+int stf_collider_volumes(const stf_collider_def *def, double band, double *vol, double *vol_band)
+{
+    char err[128];
+    collider c;
+    if (!(band > 0) || stf_collider_init(&c, def, err, sizeof err) != 0) return -1;
+    if (c.bound < 0) {
+        stf_collider_free(&c);
+        return -1;
+    }
+    /* the midpoints of an N^3 grid over the cube that holds the shape and its band */
+    enum { N = 64 };
+    double half = c.bound + band, cell = 2 * half / N, inside = 0, shell = 0;
+#pragma omp parallel for reduction(+ : inside, shell) schedule(static)
+    for (int a = 0; a < N; a++)
+        for (int b = 0; b < N; b++)
+            for (int k = 0; k < N; k++) {
+                double x[3] = {-half + (a + 0.5) * cell, -half + (b + 0.5) * cell,
+                               -half + (k + 0.5) * cell}, n[3];
+                double d = stf_collider_sdf(&c, x, n);
+                inside += d < 0;
+                shell += d >= 0 && d < band;
+            }
+    stf_collider_free(&c);
+    *vol = inside * cell * cell * cell;
+    *vol_band = shell * cell * cell * cell;
+    return 0;
+}

@@ -530,6 +530,24 @@ void stf_fluid_collider_shift(const stf_fluid *f, int id, double shift[3])
     memcpy(shift, f->colliders[id].shift, sizeof f->colliders[id].shift);
 }
 
+int stf_fluid_collider_band(stf_fluid *f, int id, double band, const double dv[3])
+{
+    const collider *c = &f->colliders[id];
+    int n = f->n, count = 0;
+    double R = c->bound + band;
+#pragma omp parallel for reduction(+ : count) schedule(static)
+    for (int i = 0; i < n; i++) {
+        double *x = f->x + 3 * i, nrm[3];
+        double e[3] = {x[0] - c->pos[0], x[1] - c->pos[1], x[2] - c->pos[2]};
+        if (c->bound >= 0 && e[0] * e[0] + e[1] * e[1] + e[2] * e[2] > R * R) continue;
+        if (!(stf_collider_sdf(c, x, nrm) < band)) continue;
+        count++;
+        if (dv)
+            for (int a = 0; a < 3; a++) f->v[3 * i + a] += dv[a];
+    }
+    return count;
+}
+
 int stf_fluid_remove_inside(stf_fluid *f, int id)
 {
     /* Particles closer than half a spacing would be thrown out on the first step. */

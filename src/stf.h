@@ -331,6 +331,10 @@ static inline int stf_wall_two_sided(double wall, double spacing) { return wall 
  * (m; 0 for a convex hull that does not hold the origin) and of the smallest sphere holding
  * it (m). Returns 0; -1 for planes and containers (unbounded) or an invalid def. */
 STF_API int stf_collider_extent(const stf_collider_def *def, double *inradius, double *bound);
+/* A bounded shape's volume (m^3) and the volume of the band of width band (m) outside its
+ * surface, counted on a grid of 64^3 points over its bounding cube (about 1% for a sphere
+ * whose band is a few grid cells thick). Returns 0; -1 as stf_collider_extent, or band <= 0. */
+STF_API int stf_collider_volumes(const stf_collider_def *def, double band, double *vol, double *vol_band);
 
 typedef struct stf_fluid stf_fluid;
 
@@ -378,6 +382,9 @@ STF_API void stf_fluid_collider_impulse(const stf_fluid *f, int id, double impul
  * of fluid and body where it was (stf_ode does); the moment above then keeps the angular
  * momentum, taking the particles' velocities relative to the collider's velocity. */
 STF_API void stf_fluid_collider_shift(const stf_fluid *f, int id, double shift[3]);
+/* The particles within band (m) outside collider id's surface: their number; when dv is not
+ * NULL, each one's velocity changes by dv (m/s). */
+STF_API int stf_fluid_collider_band(stf_fluid *f, int id, double band, const double dv[3]);
 /* Signed distance (m) from x to the collider's surface (> 0 outside). */
 STF_API double stf_fluid_collider_distance(const stf_fluid *f, int id, const double x[3]);
 
