@@ -32,6 +32,7 @@ struct stf_ode {
     dJointGroupID contacts;
     stf_fluid *fluid;
     double h, k_press, spacing; /* the fluid's interaction radius, k/h (1/s^2), spacing (m) */
+    double nu_implicit;         /* m^2/s: the largest viscosity an implicit solve spreads (0: none) */
     stf_ode_contact_def contact;
     stf_ode_step_def step;
     stf_ode_collide_fn collide;
@@ -144,6 +145,9 @@ stf_ode *stf_ode_create(dWorldID world, dSpaceID space, stf_fluid *fluid)
     c->h = fd.h > 0 ? fd.h : 2.0 * fd.spacing;
     c->k_press = (fd.effects & STF_EFFECT_PRESSURE) ? fd.k / c->h : 0.0;
     c->spacing = fd.spacing;
+    /* the Carreau-Yasuda model's implicit viscosity reaches sqrt(nu dt) within a substep */
+    if (fd.model == STF_MODEL_CARREAU_YASUDA && fd.cy.viscosity_solver == STF_VISCOSITY_IMPLICIT)
+        c->nu_implicit = fmax(fd.cy.mu0, fd.cy.mu_inf);
     return c;
 }
 
@@ -398,6 +402,20 @@ static void sync_collider(stf_ode *c, const attachment *a)
     stf_fluid_set_collider_state(c->fluid, a->collider, pos, rot, vel, w);
 }
 
+/* The inverse of the symmetric 3x3 matrix m (xx yy zz xy xz yz); 0, or -1 when it is
+ * singular to within 1e-9 of its scale. */
+static int inverse_sym3(const double m[6], double inv[9])
+{
+    double a = m[0], b = m[1], c = m[2], d = m[3], e = m[4], f = m[5];
+    double c00 = b * c - f * f, c01 = e * f - d * c, c02 = d * f - b * e;
+    double det = a * c00 + d * c01 + e * c02, scale = (a + b + c) / 3;
+    if (!(fabs(det) > 1e-9 * scale * scale * scale)) return -1;
+    double c11 = a * c - e * e, c12 = d * e - a * f, c22 = a * b - d * d;
+    double r[9] = {c00, c01, c02, c01, c11, c12, c02, c12, c22};
+    for (int q = 0; q < 9; q++) inv[q] = r[q] / det;
+    return 0;
+}
+
 /* The added-mass stabilisation (ours). The coupling is explicit: the fluid's reaction to the
  * body's velocity in one substep moves the body in the next. The fluid a body drags along
  * answers a velocity change du with an impulse of about -E du, and a body of mass M then
@@ -406,16 +424,22 @@ static void sync_collider(stf_ode *c, const attachment *a)
  * for a sphere in a continuum; in the particle fluid it is about the whole of it (rho V):
  * measured, a sphere of 1.5 spacings half as dense as the Carreau-Yasuda fluid still shook
  * with M + A = rho V, and was quiet with 2 rho V (tests/README.md, "Light bodies"). So a
- * body whose mass is under 2 E = 2 rho V_w (V_w its volume times its wetted share: the
- * particles within a spacing of its surface over the number a submerged one has) takes its
- * velocity change as if it had the mass M + A, A = 2 rho V_w - M: the loop's factor
- * E / (M + A) is then about 1/2. The impulse that holds back, A du (du = (J + M g dt) /
- * (M + A)), goes to the particles within the spacing (the fluid moves with the body as an
- * added mass does), so the momentum is kept (the angular momentum to within the moment of
- * that impulse about the body's centre from the particles' mean position). A steady state
- * (floating, a terminal velocity) has du = 0 and is unchanged; a transient is slower by (M
- * + A + E) / (M + E). Bodies with several geoms and the rotation are left as they were. */
-static void stabilise_light_body(stf_ode *c, int k, double dt, double F[3])
+ * body whose mass is under 2 E, E = rho V_w (V_w its volume times its wetted share: the
+ * particles within a spacing of its surface over the number a submerged one has), takes its
+ * velocity change as if it had the mass M + A = 2 E: the loop's factor E / (M + A) is then
+ * about 1/2. A viscosity solved implicitly (the Carreau-Yasuda model's) moves the fluid
+ * within L = sqrt(nu dt) of the surface with the body in the substep, so where L exceeds the
+ * spacing E is at least the mass of the fluid within L. The rotation is the same loop: the
+ * fluid in the band turns with the body's surface (its moment of inertia about the body's
+ * centre, I_f, was 19 times the body's for a sphere of 3 spacings a quarter as dense as a
+ * fluid of 0.01 m^2/s, which spun up to 700 rad/s in 9 ms), so a body whose moment of
+ * inertia (the mean of its principal ones) is under 2 I_f takes the fluid's torque as if it
+ * were 2 I_f. The impulse and angular impulse held back go to the particles in the band as a
+ * velocity and a rotation about their centre (the fluid moves with the body as an added
+ * mass does), so momentum and angular momentum are kept to round-off. A steady state
+ * (floating, a terminal velocity) is unchanged; a transient is slower by (2 E + E) / (M + E).
+ * Bodies with several geoms are left as they were. */
+static void stabilise_light_body(stf_ode *c, int k, double dt, double F[3], double T[3])
 {
     const attachment *a = &c->att[k];
     if (!(a->vol > 0) || !(a->vol_band > 0) || dBodyIsKinematic(a->body)) return;
@@ -424,20 +448,56 @@ static void stabilise_light_body(stf_ode *c, int k, double dt, double F[3])
     dMass m;
     dBodyGetMass(a->body, &m);
     double s = c->spacing, mp = stf_fluid_particle_mass(c->fluid), rho = mp / (s * s * s);
-    if (!(m.mass < 2 * rho * a->vol)) return;
-    int count = stf_fluid_collider_band(c->fluid, a->collider, s, NULL);
-    double wet = fmin(1.0, count * s * s * s / a->vol_band);
-    double A = 2 * rho * a->vol * wet - m.mass;
-    if (!(A > 0) || count == 0) return;
+    double Ib = (m.I[0] + m.I[5] + m.I[10]) / 3; /* ODE's 3x4 rows: the diagonal */
+    const dReal *com = dBodyGetPosition(a->body);
+    double X[3] = {com[0], com[1], com[2]}, sum[3], sum2[6];
+    int wetted = stf_fluid_collider_band(c->fluid, a->collider, s, X, sum, sum2), count = wetted;
+    double wet = fmin(1.0, wetted * s * s * s / a->vol_band), E = rho * a->vol * wet;
+    /* a viscosity solved implicitly moves the fluid within L = sqrt(nu dt) of the surface with
+       the body in the substep: E is at least that fluid's mass, and the band is L wide */
+    double reach = sqrt(c->nu_implicit * dt), band = s;
+    if (reach > s) {
+        band = reach;
+        count = stf_fluid_collider_band(c->fluid, a->collider, band, X, sum, sum2);
+        E = fmax(E, count * mp);
+    }
+    if (count < 4) return;
+    double A = 2 * E - m.mass;
+    /* the band's centre (relative to X), its inertia about X (mean of the principal ones)
+       and its inertia tensor about its centre */
+    double cen[3] = {sum[0] / count, sum[1] / count, sum[2] / count};
+    double If = mp * 2.0 / 3.0 * (sum2[0] + sum2[1] + sum2[2]);
+    double Ar = 2 * If - Ib;
+    if (!(A > 0) && !(Ar > 0)) return;
+    double cov[6] = {sum2[0] - count * cen[0] * cen[0], sum2[1] - count * cen[1] * cen[1],
+                     sum2[2] - count * cen[2] * cen[2], sum2[3] - count * cen[0] * cen[1],
+                     sum2[4] - count * cen[0] * cen[2], sum2[5] - count * cen[1] * cen[2]};
+    double tr = cov[0] + cov[1] + cov[2], Ic[6], inv[9];
+    Ic[0] = mp * (tr - cov[0]), Ic[1] = mp * (tr - cov[1]), Ic[2] = mp * (tr - cov[2]);
+    Ic[3] = -mp * cov[3], Ic[4] = -mp * cov[4], Ic[5] = -mp * cov[5];
+    if (inverse_sym3(Ic, inv) != 0) return; /* a band of particles in a line: left as it is */
     dVector3 g;
     dWorldGetGravity(c->world, g);
-    double dv[3];
-    for (int q = 0; q < 3; q++) {
+    double D[3] = {0, 0, 0}, H[3] = {0, 0, 0}, dv[3], L[3], w[3];
+    for (int q = 0; q < 3 && A > 0; q++) {
         double held = F[q] - m.mass * (F[q] - A * g[q]) / (m.mass + A); /* N */
         F[q] -= held;
-        dv[q] = held * dt / (count * mp);
+        D[q] = held * dt;
     }
-    stf_fluid_collider_band(c->fluid, a->collider, s, dv);
+    for (int q = 0; q < 3 && Ar > 0; q++) {
+        double held = T[q] * Ar / (Ib + Ar); /* N m */
+        T[q] -= held;
+        H[q] = held * dt;
+    }
+    /* the uniform velocity carries D and the moment cen × D about X; the rotation about the
+       band's centre the rest of H */
+    for (int q = 0; q < 3; q++) dv[q] = D[q] / (count * mp);
+    L[0] = H[0] - (cen[1] * D[2] - cen[2] * D[1]);
+    L[1] = H[1] - (cen[2] * D[0] - cen[0] * D[2]);
+    L[2] = H[2] - (cen[0] * D[1] - cen[1] * D[0]);
+    for (int q = 0; q < 3; q++) w[q] = inv[3 * q] * L[0] + inv[3 * q + 1] * L[1] + inv[3 * q + 2] * L[2];
+    double C[3] = {X[0] + cen[0], X[1] + cen[1], X[2] + cen[2]};
+    stf_fluid_collider_band_push(c->fluid, a->collider, band, C, dv, w);
 }
 
 /* Gives body a's share of the fluid's reaction as force and torque over dt. */
@@ -472,7 +532,7 @@ static void apply_reaction(stf_ode *c, int k, double dt)
     tot[1] -= S[2] * u[0] - S[0] * u[2];
     tot[2] -= S[0] * u[1] - S[1] * u[0];
     for (int q = 0; q < 3; q++) F[q] = J[q] / dt, T[q] = tot[q] / dt;
-    stabilise_light_body(c, k, dt, F);
+    stabilise_light_body(c, k, dt, F, T);
     if (J[0] != 0 || J[1] != 0 || J[2] != 0 || S[0] != 0 || S[1] != 0 || S[2] != 0) {
         dBodyEnable(a->body); /* a body the fluid pushes must not fall asleep */
         dBodyAddForce(a->body, F[0], F[1], F[2]);

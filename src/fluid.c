@@ -530,22 +530,50 @@ void stf_fluid_collider_shift(const stf_fluid *f, int id, double shift[3])
     memcpy(shift, f->colliders[id].shift, sizeof f->colliders[id].shift);
 }
 
-int stf_fluid_collider_band(stf_fluid *f, int id, double band, const double dv[3])
+/* the particles within band outside collider c: near its bounding sphere, then by distance */
+static int in_band(const collider *c, const double *x, double band)
+{
+    double e[3] = {x[0] - c->pos[0], x[1] - c->pos[1], x[2] - c->pos[2]}, nrm[3];
+    double R = c->bound + band;
+    if (c->bound >= 0 && e[0] * e[0] + e[1] * e[1] + e[2] * e[2] > R * R) return 0;
+    return stf_collider_sdf(c, x, nrm) < band;
+}
+
+int stf_fluid_collider_band(const stf_fluid *f, int id, double band, const double origin[3],
+                            double sum[3], double sum2[6])
 {
     const collider *c = &f->colliders[id];
-    int n = f->n, count = 0;
-    double R = c->bound + band;
-#pragma omp parallel for reduction(+ : count) schedule(static)
-    for (int i = 0; i < n; i++) {
-        double *x = f->x + 3 * i, nrm[3];
-        double e[3] = {x[0] - c->pos[0], x[1] - c->pos[1], x[2] - c->pos[2]};
-        if (c->bound >= 0 && e[0] * e[0] + e[1] * e[1] + e[2] * e[2] > R * R) continue;
-        if (!(stf_collider_sdf(c, x, nrm) < band)) continue;
+    int count = 0;
+    for (int a = 0; a < 3; a++) sum[a] = 0;
+    for (int a = 0; a < 6; a++) sum2[a] = 0;
+    /* serial, in particle order: the sums do not depend on the thread count */
+    for (int i = 0; i < f->n; i++) {
+        const double *x = f->x + 3 * i;
+        if (!in_band(c, x, band)) continue;
+        double r[3] = {x[0] - origin[0], x[1] - origin[1], x[2] - origin[2]};
         count++;
-        if (dv)
-            for (int a = 0; a < 3; a++) f->v[3 * i + a] += dv[a];
+        for (int a = 0; a < 3; a++) sum[a] += r[a];
+        sum2[0] += r[0] * r[0], sum2[1] += r[1] * r[1], sum2[2] += r[2] * r[2];
+        sum2[3] += r[0] * r[1], sum2[4] += r[0] * r[2], sum2[5] += r[1] * r[2];
     }
     return count;
+}
+
+void stf_fluid_collider_band_push(stf_fluid *f, int id, double band, const double origin[3],
+                                  const double dv[3], const double w[3])
+{
+    const collider *c = &f->colliders[id];
+    int n = f->n;
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++) {
+        const double *x = f->x + 3 * i;
+        if (!in_band(c, x, band)) continue;
+        double r[3] = {x[0] - origin[0], x[1] - origin[1], x[2] - origin[2]};
+        double *v = f->v + 3 * i;
+        v[0] += dv[0] + w[1] * r[2] - w[2] * r[1];
+        v[1] += dv[1] + w[2] * r[0] - w[0] * r[2];
+        v[2] += dv[2] + w[0] * r[1] - w[1] * r[0];
+    }
 }
 
 int stf_fluid_remove_inside(stf_fluid *f, int id)

@@ -1,5 +1,6 @@
-# body_sweep_scene.py MODEL RS RATIO PLACE SHAPE [DURATION] -> a scene on stdout (the sweep of
-# tests/cli_body_sweep.sh): MODEL cl (Clavet) | cy (Carreau-Yasuda, Newtonian 3.8e-4 m^2/s); a
+# body_sweep_scene.py MODEL RS RATIO PLACE SHAPE [DURATION [NU]] -> a scene on stdout (the sweep
+# of tests/cli_body_sweep.sh): MODEL cl (Clavet) | cy (Carreau-Yasuda, Newtonian, NU m^2/s,
+# default 3.8e-4); a
 # sphere of radius RS spacings (or a cube of side 2 RS spacings) of RATIO times the fluid's
 # density, placed inside the fluid (its centre at mid-depth), half in (its centre on the
 # surface) or above it (2 spacings clear), in water (970 kg/m^3) at 5 mm spacing that fills a
@@ -14,14 +15,14 @@ def tank(RS):
     R = RS * s
     return R, round((2 * R + 8 * s) / s) * s, round((2 * R + 10 * s) / s) * s
 
-def tank_scene(name, model, RS, duration, frame_rate, height, body, cy=()):
+def tank_scene(name, model, RS, duration, frame_rate, height, body, cy=(), nu="3.8e-4"):
     """The scene: water at 5 mm spacing filling the tank, settled for 0.3 s; model cl or cy
     (cy: the keys of cy added to the Newtonian carreau_yasuda block); the container height(R,
     H) tall and the body's lines body(R, W, H) after '  - name: ball'."""
     R, W, H = tank(RS)
     if model == 'cy':
         fl = "  model: carreau_yasuda"
-        eff = "  carreau_yasuda: {" + ", ".join(["mu0: 3.8e-4", "mu_inf: 3.8e-4", "n: 1"] + list(cy)) + "}"
+        eff = "  carreau_yasuda: {" + ", ".join(["mu0: " + nu, "mu_inf: " + nu, "n: 1"] + list(cy)) + "}"
     else:
         fl = "  model: clavet_stf"
         eff = "  viscosity: {sigma: 2.0}\n  pressure: {k: 1000, k_near: 200}"
@@ -56,4 +57,4 @@ if __name__ == "__main__":
         geo = f"shape: sphere\n    radius: {R}" if shape == 'sphere' else f"shape: box\n    size: [{2*R}, {2*R}, {2*R}]"
         return f"    {geo}\n    density: {970*ratio}\n    position: [0, 0, {zc}]\n"
     print(tank_scene("sw", model, RS, sys.argv[6] if len(sys.argv) > 6 else 0.6, 50,
-                     lambda R, H: H+2*R+0.05, body))
+                     lambda R, H: H+2*R+0.05, body, nu=sys.argv[7] if len(sys.argv) > 7 else "3.8e-4"))

@@ -26,13 +26,19 @@ stf=$STF; src=$PROJ
 export OMP_NUM_THREADS=1 OMP_WAIT_POLICY=passive
 cases="3:0.25:inside:sphere 3:0.5:inside:sphere 3:0.75:half:sphere 3:4:inside:sphere
 3:0.5:above:sphere 3:0.5:half:box 1.5:0.25:inside:sphere 1.5:4:above:sphere"
-for model in cl cy; do
-    for c in $cases; do
-        IFS=: read -r RS ratio place shape <<<"$c"
-        name=${model}_${RS}_${ratio}_${place}_${shape}
-        /usr/bin/python3 "$src/tests/body_sweep_scene.py" $model "$RS" "$ratio" "$place" "$shape" 1.0 > $name.yaml
+# and a light sphere in a viscous Carreau-Yasuda fluid (NU m^2/s, implicit viscosity), where
+# the explicit coupling spun it up to 700 rad/s (NU 0.01) or threw it out at 26 m/s (NU 1)
+# within 10 ms before the added-mass stabilisation took the fluid within sqrt(NU dt) of it
+viscous="3:0.25:inside:sphere:0.01 3:0.25:inside:sphere:1"
+for model in cl cy cy_viscous; do
+    list=$cases; [ $model = cy_viscous ] && list=$viscous
+    for c in $list; do
+        IFS=: read -r RS ratio place shape nu <<<"$c"
+        m=${model%_viscous}
+        name=${model}_${RS}_${ratio}_${place}_${shape}${nu:+_nu$nu}
+        /usr/bin/python3 "$src/tests/body_sweep_scene.py" $m "$RS" "$ratio" "$place" "$shape" 1.0 ${nu:-3.8e-4} > $name.yaml
         "$stf" run $name.yaml -o $name.h5 --quiet 2>$name.txt || { fail "$name: exit $? ($(cat $name.txt))"; continue; }
-        /usr/bin/python3 - "$name" "$RS" "$ratio" "$place" "$shape" "$model" <<'PY' || fail "$name: see above"
+        /usr/bin/python3 - "$name" "$RS" "$ratio" "$place" "$shape" "$m" <<'PY' || fail "$name: see above"
 import sys, h5py, numpy as np
 name, RS, ratio, place, shape = sys.argv[1], float(sys.argv[2]), float(sys.argv[3]), sys.argv[4], sys.argv[5]
 model = sys.argv[6]
