@@ -307,8 +307,51 @@ static void test_outer_faces(void)
     stf_fluid_destroy(f);
 }
 
+/* stf_collider_volumes against the exact volumes of a sphere, a box and a capsule and of
+ * the bands a spacing wide about them (the shell between the surface and its offset by b:
+ * a sphere's 4/3 pi ((R+b)^3 - R^3); a box's faces, quarter cylinders on its edges and
+ * eighth balls on its corners; a capsule's cylinder and ball shells), within 1%. */
+static void test_volumes(void)
+{
+    const double pi = acos(-1.0), b = 0.01;
+    stf_collider_def c = stf_default_collider_def();
+    struct {
+        const char *what;
+        int shape;
+        double r, hl, hx, hy, hz, vol, band;
+    } cases[3] = {
+        {"sphere", STF_SHAPE_SPHERE, 0.015, 0, 0, 0, 0, 0, 0},
+        {"box", STF_SHAPE_BOX, 0, 0, 0.03, 0.02, 0.01, 0, 0},
+        {"capsule", STF_SHAPE_CAPSULE, 0.01, 0.02, 0, 0, 0, 0, 0},
+    };
+    double R = cases[0].r;
+    cases[0].vol = 4 * pi / 3 * R * R * R;
+    cases[0].band = 4 * pi / 3 * (pow(R + b, 3) - R * R * R);
+    double x = 2 * cases[1].hx, y = 2 * cases[1].hy, z = 2 * cases[1].hz;
+    cases[1].vol = x * y * z;
+    cases[1].band = 2 * b * (x * y + y * z + z * x) + pi * b * b * (x + y + z) + 4 * pi / 3 * b * b * b;
+    double r = cases[2].r, L = 2 * cases[2].hl;
+    cases[2].vol = pi * r * r * L + 4 * pi / 3 * r * r * r;
+    cases[2].band = pi * ((r + b) * (r + b) - r * r) * L + 4 * pi / 3 * (pow(r + b, 3) - r * r * r);
+    for (int k = 0; k < 3; k++) {
+        c.shape = cases[k].shape, c.radius = cases[k].r, c.half_length = cases[k].hl;
+        c.half[0] = cases[k].hx, c.half[1] = cases[k].hy, c.half[2] = cases[k].hz;
+        double vol, band;
+        CHECK(stf_collider_volumes(&c, b, &vol, &band) == 0, "%s: volumes", cases[k].what);
+        CHECK(fabs(vol / cases[k].vol - 1) < 0.01 && fabs(band / cases[k].band - 1) < 0.01,
+              "%s: volume %g (exact %g), band %g (exact %g)", cases[k].what, vol, cases[k].vol,
+              band, cases[k].band);
+        printf("volumes: %s %+.2f%%, its band %+.2f%%\n", cases[k].what, 100 * (vol / cases[k].vol - 1),
+               100 * (band / cases[k].band - 1));
+    }
+    c.shape = STF_SHAPE_PLANE;
+    double vol, band;
+    CHECK(stf_collider_volumes(&c, b, &vol, &band) != 0, "a plane has no volume");
+}
+
 int main(void)
 {
+    test_volumes();
     test_shapes();
     test_on_surface();
     test_rim();
