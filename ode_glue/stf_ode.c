@@ -476,8 +476,8 @@ static void stabilise_light_body(stf_ode *c, int k, double dt, double F[3], doub
     Ic[0] = mp * (tr - cov[0]), Ic[1] = mp * (tr - cov[1]), Ic[2] = mp * (tr - cov[2]);
     Ic[3] = -mp * cov[3], Ic[4] = -mp * cov[4], Ic[5] = -mp * cov[5];
     if (inverse_sym3(Ic, inv) != 0) return; /* a band of particles in a line: left as it is */
-    dVector3 g;
-    dWorldGetGravity(c->world, g);
+    dVector3 g = {0, 0, 0, 0};
+    if (dBodyGetGravityMode(a->body)) dWorldGetGravity(c->world, g); /* the body's own weight */
     double D[3] = {0, 0, 0}, H[3] = {0, 0, 0}, dv[3], L[3], w[3];
     for (int q = 0; q < 3 && A > 0; q++) {
         double held = F[q] - m.mass * (F[q] - A * g[q]) / (m.mass + A); /* N */
