@@ -540,6 +540,8 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
             /* read once: a signal that comes later (while the file is written and released)
                stops the run at the next frame, which then has its checkpoint */
             int stopping = interrupted != 0;
+            if (stopping && status == 0 && s < steps && a->checkpoint >= 0)
+                fprintf(stderr, "\nstf: stopping at t = %.4f s: writing the checkpoint ...", sim->time);
             if (status == 0 && s < steps && a->checkpoint >= 0 && (stopping || due)) {
                 if (write_checkpoint(h, sim, &p, now - t0) != 0) status = 2;
                 last_checkpoint = now;
@@ -555,6 +557,8 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
         } else if (status == 0 && s < steps && stop_now(NULL)) {
             /* interrupted and the frame is not finished within the grace: stop at this
                step; a checkpoint here resumes bit for bit (frames stay at their steps) */
+            if (a->checkpoint >= 0)
+                fprintf(stderr, "\nstf: stopping at t = %.4f s: writing the checkpoint ...", sim->time);
             if (a->checkpoint >= 0 && write_checkpoint(h, sim, &p, omp_get_wtime() - t0) != 0)
                 status = 2;
             else {
