@@ -645,9 +645,11 @@ int stf_collider_volumes(const stf_collider_def *def, double band, double *vol, 
        by the share of it the distance at its midpoint puts inside (d = 0 on the surface:
        half), which follows a smooth surface that cuts a cell: second order in the cell */
     enum { N = 64 };
-    double half = c.bound + band, cell = 2 * half / N, inside = 0, shell = 0;
-#pragma omp parallel for reduction(+ : inside, shell) schedule(static)
-    for (int a = 0; a < N; a++)
+    double half = c.bound + band, cell = 2 * half / N, in_row[N], band_row[N];
+    /* by slab, summed in order: the volumes do not depend on the thread count */
+#pragma omp parallel for schedule(static)
+    for (int a = 0; a < N; a++) {
+        in_row[a] = band_row[a] = 0;
         for (int b = 0; b < N; b++)
             for (int k = 0; k < N; k++) {
                 double x[3] = {-half + (a + 0.5) * cell, -half + (b + 0.5) * cell,
@@ -655,9 +657,12 @@ int stf_collider_volumes(const stf_collider_def *def, double band, double *vol, 
                 double d = stf_collider_sdf(&c, x, n);
                 double in = fmin(1.0, fmax(0.0, 0.5 - d / cell));
                 double in_band = fmin(1.0, fmax(0.0, 0.5 - (d - band) / cell));
-                inside += in;
-                shell += in_band - in;
+                in_row[a] += in;
+                band_row[a] += in_band - in;
             }
+    }
+    double inside = 0, shell = 0;
+    for (int a = 0; a < N; a++) inside += in_row[a], shell += band_row[a];
     stf_collider_free(&c);
     *vol = inside * cell * cell * cell;
     *vol_band = shell * cell * cell * cell;
