@@ -449,13 +449,19 @@ static void stabilise_light_body(stf_ode *c, int k, double dt, double F[3], doub
     dBodyGetMass(a->body, &m);
     double s = c->spacing, mp = stf_fluid_particle_mass(c->fluid), rho = mp / (s * s * s);
     double Ib = (m.I[0] + m.I[5] + m.I[10]) / 3; /* ODE's 3x4 rows: the diagonal */
+    double reach = sqrt(c->nu_implicit * dt), band = s;
+    /* a body heavier than any wetting can ask for skips the pass over the particles: the
+       band's fluid (at most 1.5 times its nominal mass) turns at most at the bounding radius */
+    double far = a->reach + s;
+    if (reach <= s && m.mass >= 2 * rho * a->vol &&
+        Ib >= 2 * (2.0 / 3.0) * 1.5 * rho * a->vol_band * far * far)
+        return;
     const dReal *com = dBodyGetPosition(a->body);
     double X[3] = {com[0], com[1], com[2]}, sum[3], sum2[6];
     int wetted = stf_fluid_collider_band(c->fluid, a->collider, s, X, sum, sum2), count = wetted;
     double wet = fmin(1.0, wetted * s * s * s / a->vol_band), E = rho * a->vol * wet;
     /* a viscosity solved implicitly moves the fluid within L = sqrt(nu dt) of the surface with
        the body in the substep: E is at least that fluid's mass, and the band is L wide */
-    double reach = sqrt(c->nu_implicit * dt), band = s;
     if (reach > s) {
         band = reach;
         count = stf_fluid_collider_band(c->fluid, a->collider, band, X, sum, sum2);
