@@ -499,15 +499,6 @@ void stf_collider_take_reaction(collider *c, const double *imp, const double *x,
     for (int a = 0; a < 3; a++) c->impulse[a] += J[a], c->moment[a] += M[a];
 }
 
-/* Near a collider? A cheap sphere test before the exact distance. */
-static int maybe_near(const collider *c, const double x[3], double margin)
-{
-    if (c->bound < 0) return 1;
-    double d[3] = {x[0] - c->pos[0], x[1] - c->pos[1], x[2] - c->pos[2]};
-    double R = c->bound + margin;
-    return d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= R * R;
-}
-
 /* Projects particle i out of collider c, stops its approach, and applies Coulomb friction:
  * the tangential slip relative to the surface drops by at most friction times the normal
  * velocity change, so the result does not depend on dt. Stores the impulse given to the
@@ -517,7 +508,7 @@ static int collide_one(stf_fluid *f, const collider *c, int i, double dt, double
 {
     double *x = f->x + 3 * i;
     double rp = 0.5 * f->def.spacing, nrm[3];
-    if (!maybe_near(c, x, rp)) return 0;
+    if (!stf_collider_near(c, x, rp)) return 0;
     double d = stf_collider_sdf(c, x, nrm);
     if (d >= rp) return 0;
     /* The penetration is removed from the position only (xprev moves along), so it adds no

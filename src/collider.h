@@ -22,6 +22,15 @@ typedef struct collider {
 
 int stf_collider_init(collider *c, const stf_collider_def *def, char *err, size_t errlen);
 void stf_collider_free(collider *c);
+/* Near collider c, within margin (m) of its bounding sphere (every point of an unbounded
+ * one)? A cheap test before the exact distance. */
+static inline int stf_collider_near(const collider *c, const double x[3], double margin)
+{
+    if (c->bound < 0) return 1;
+    double d[3] = {x[0] - c->pos[0], x[1] - c->pos[1], x[2] - c->pos[2]};
+    double R = c->bound + margin;
+    return d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= R * R;
+}
 /* Signed distance from x to the surface (m, > 0 outside the solid, may be a large positive
  * number when far) and the unit normal pointing out of the solid. */
 double stf_collider_sdf(const collider *c, const double x[3], double n[3]);

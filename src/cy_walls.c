@@ -194,11 +194,7 @@ static int wall_term(const stf_fluid *f, const collider *col, int i, double G[3]
 {
     const double *x = f->x + 3 * i;
     double h = f->h;
-    if (col->bound >= 0) {
-        double d2 = 0;
-        for (int a = 0; a < 3; a++) d2 += (x[a] - col->pos[a]) * (x[a] - col->pos[a]);
-        if (d2 > (col->bound + h) * (col->bound + h)) return 0;
-    }
+    if (!stf_collider_near(col, x, h)) return 0;
     double fd[5], fn[5][3];
     int faces = stf_collider_container_faces(col, x, fd, fn), hit = 0;
     if (faces == 0) {

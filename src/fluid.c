@@ -530,13 +530,11 @@ void stf_fluid_collider_shift(const stf_fluid *f, int id, double shift[3])
     memcpy(shift, f->colliders[id].shift, sizeof f->colliders[id].shift);
 }
 
-/* the particles within band outside collider c: near its bounding sphere, then by distance */
+/* the particles within band outside collider c */
 static int in_band(const collider *c, const double *x, double band)
 {
-    double e[3] = {x[0] - c->pos[0], x[1] - c->pos[1], x[2] - c->pos[2]}, nrm[3];
-    double R = c->bound + band;
-    if (c->bound >= 0 && e[0] * e[0] + e[1] * e[1] + e[2] * e[2] > R * R) return 0;
-    return stf_collider_sdf(c, x, nrm) < band;
+    double nrm[3];
+    return stf_collider_near(c, x, band) && stf_collider_sdf(c, x, nrm) < band;
 }
 
 int stf_fluid_collider_band(const stf_fluid *f, int id, double band, const double origin[3],

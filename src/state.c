@@ -38,13 +38,9 @@ void stf_state_put(stf_state *s, const char *name, int type, size_t count, const
 void stf_state_put_rows(stf_state *s, const char *name, int type, size_t rows, size_t len,
                         size_t stride, const void *data)
 {
-    stf_state_entry *e = add(s, name);
-    if (!e) return;
-    e->type = type;
-    e->count = rows * len;
-    e->data = data;
-    e->rows = rows;
-    e->stride = stride;
+    int before = s->n;
+    stf_state_put(s, name, type, rows * len, data);
+    if (s->n > before) s->e[before].rows = rows, s->e[before].stride = stride;
 }
 
 void stf_state_put_owned(stf_state *s, const char *name, int type, size_t count, void *data)

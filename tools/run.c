@@ -463,6 +463,13 @@ static int start_run(const stf_scene *sc, const char *out, const stf_state *resu
     return 0;
 }
 
+/* An interrupt stopped the stepping: the checkpoint that follows may take seconds (the
+ * history ring of a long memory), so the user hears at once. */
+static void say_stopping(const stf_sim *sim)
+{
+    fprintf(stderr, "\nstf: stopping at t = %.4f s: writing the checkpoint ...", sim->time);
+}
+
 static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metrics *m,
                     const stf_state *resume)
 {
@@ -540,8 +547,7 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
             /* read once: a signal that comes later (while the file is written and released)
                stops the run at the next frame, which then has its checkpoint */
             int stopping = interrupted != 0;
-            if (stopping && status == 0 && s < steps && a->checkpoint >= 0)
-                fprintf(stderr, "\nstf: stopping at t = %.4f s: writing the checkpoint ...", sim->time);
+            if (stopping && status == 0 && s < steps && a->checkpoint >= 0) say_stopping(sim);
             if (status == 0 && s < steps && a->checkpoint >= 0 && (stopping || due)) {
                 if (write_checkpoint(h, sim, &p, now - t0) != 0) status = 2;
                 last_checkpoint = now;
@@ -557,8 +563,7 @@ static int simulate(const run_args *a, stf_scene *sc, const char *out, stf_metri
         } else if (status == 0 && s < steps && stop_now(NULL)) {
             /* interrupted and the frame is not finished within the grace: stop at this
                step; a checkpoint here resumes bit for bit (frames stay at their steps) */
-            if (a->checkpoint >= 0)
-                fprintf(stderr, "\nstf: stopping at t = %.4f s: writing the checkpoint ...", sim->time);
+            if (a->checkpoint >= 0) say_stopping(sim);
             if (a->checkpoint >= 0 && write_checkpoint(h, sim, &p, omp_get_wtime() - t0) != 0)
                 status = 2;
             else {
