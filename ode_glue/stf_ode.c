@@ -44,6 +44,9 @@ struct stf_ode {
     /* per attachment: force (N) and torque about the body centre (N m) of the last substep,
        and their impulses (N s, N m s) summed over the last stf_ode_step's substeps */
     double *force, *torque, *imp, *aimp;
+    /* per attachment, STF_ODE_PARTS rows of 3: the force by part (stf_ode_body_fluid_force_parts)
+       of the last substep (N), and its impulse over the last stf_ode_step (N s) */
+    double *part, *pimp;
     double step_dt; /* s, the last stf_ode_step's dt (0 before the first) */
 };
 
@@ -160,6 +163,8 @@ void stf_ode_destroy(stf_ode *c)
     free(c->torque);
     free(c->imp);
     free(c->aimp);
+    free(c->part);
+    free(c->pimp);
     free(c);
 }
 
@@ -200,9 +205,11 @@ static int push(stf_ode *c, attachment a, char *err, size_t errlen)
         if (att) c->att = att;
         double **arr[4] = {&c->force, &c->torque, &c->imp, &c->aimp};
         int ok = att != NULL;
-        for (int q = 0; q < 4; q++) {
-            double *p = realloc(*arr[q], (size_t)cap * 3 * sizeof *p);
-            if (p) *arr[q] = p;
+        double **parr[2] = {&c->part, &c->pimp};
+        for (int q = 0; q < 6; q++) {
+            size_t len = (size_t)cap * 3 * (q < 4 ? 1 : STF_ODE_PARTS);
+            double **ar = q < 4 ? arr[q] : parr[q - 4], *p = realloc(*ar, len * sizeof *p);
+            if (p) *ar = p;
             else ok = 0;
         }
         if (!ok) {
@@ -215,6 +222,8 @@ static int push(stf_ode *c, attachment a, char *err, size_t errlen)
     memset(c->torque + 3 * c->n, 0, 3 * sizeof *c->torque);
     memset(c->imp + 3 * c->n, 0, 3 * sizeof *c->imp);
     memset(c->aimp + 3 * c->n, 0, 3 * sizeof *c->aimp);
+    memset(c->part + 3 * STF_ODE_PARTS * c->n, 0, 3 * STF_ODE_PARTS * sizeof *c->part);
+    memset(c->pimp + 3 * STF_ODE_PARTS * c->n, 0, 3 * STF_ODE_PARTS * sizeof *c->pimp);
     c->att[c->n++] = a;
     return 0;
 }
@@ -511,9 +520,11 @@ static void apply_reaction(stf_ode *c, int k, double dt)
 {
     const attachment *a = &c->att[k];
     double J[3], M[3], *F = c->force + 3 * k, *T = c->torque + 3 * k;
+    double *P = c->part + 3 * STF_ODE_PARTS * k;
     stf_fluid_collider_impulse(c->fluid, a->collider, J, M);
     memset(F, 0, 3 * sizeof *F);
     memset(T, 0, 3 * sizeof *T);
+    memset(P, 0, 3 * STF_ODE_PARTS * sizeof *P);
     if (!a->body) return;
     /* moment about the collider origin -> torque about the body's centre of mass */
     double cp[3];
@@ -539,6 +550,11 @@ static void apply_reaction(stf_ode *c, int k, double dt)
     tot[2] -= S[0] * u[1] - S[1] * u[0];
     for (int q = 0; q < 3; q++) F[q] = J[q] / dt, T[q] = tot[q] / dt;
     stabilise_light_body(c, k, dt, F, T);
+    double parts[STF_PARTS][3];
+    stf_fluid_collider_impulse_parts(c->fluid, a->collider, parts);
+    for (int p = 0; p < STF_PARTS; p++)
+        for (int q = 0; q < 3; q++) P[3 * p + q] = parts[p][q] / dt;
+    for (int q = 0; q < 3; q++) P[3 * STF_ODE_PART_ADDED_MASS + q] = F[q] - J[q] / dt;
     if (J[0] != 0 || J[1] != 0 || J[2] != 0 || S[0] != 0 || S[1] != 0 || S[2] != 0) {
         dBodyEnable(a->body); /* a body the fluid pushes must not fall asleep */
         dBodyAddForce(a->body, F[0], F[1], F[2]);
@@ -647,6 +663,7 @@ int stf_ode_substep(stf_ode *c, double dt)
     }
     for (int q = 0; q < 3 * c->n; q++)
         c->imp[q] += c->force[q] * dt, c->aimp[q] += c->torque[q] * dt;
+    for (int q = 0; q < 3 * STF_ODE_PARTS * c->n; q++) c->pimp[q] += c->part[q] * dt;
     c->stats.substeps++;
     if (c->stats.dt_min == 0 || dt < c->stats.dt_min) c->stats.dt_min = dt;
     if (dt > c->stats.dt_max) c->stats.dt_max = dt;
@@ -768,6 +785,7 @@ int stf_ode_step(stf_ode *c, double dt)
     if (c->n > 0) { /* a coupler with no bodies has no impulse arrays */
         memset(c->imp, 0, 3 * (size_t)c->n * sizeof *c->imp);
         memset(c->aimp, 0, 3 * (size_t)c->n * sizeof *c->aimp);
+        memset(c->pimp, 0, 3 * STF_ODE_PARTS * (size_t)c->n * sizeof *c->pimp);
     }
     c->step_dt = 0;
     for (int j = 0; j < m; j++)
@@ -819,6 +837,32 @@ void stf_ode_body_fluid_force(const stf_ode *c, dBodyID body, double force[3], d
             torque[q] += c->aimp[3 * k + q] / c->step_dt;
         }
     }
+}
+
+/* body's parts from src (c->part or c->pimp) times scale */
+static void sum_parts(const stf_ode *c, dBodyID body, const double *src, double scale,
+                      double parts[STF_ODE_PARTS][3])
+{
+    memset(parts, 0, STF_ODE_PARTS * sizeof parts[0]);
+    for (int k = 0; k < c->n; k++) {
+        if (c->att[k].body != body) continue;
+        const double *P = src + 3 * STF_ODE_PARTS * k;
+        for (int p = 0; p < STF_ODE_PARTS; p++)
+            for (int q = 0; q < 3; q++) parts[p][q] += scale * P[3 * p + q];
+    }
+}
+
+void stf_ode_substep_force_parts(const stf_ode *c, dBodyID body, double parts[STF_ODE_PARTS][3])
+{
+    sum_parts(c, body, c->part, 1.0, parts);
+}
+
+void stf_ode_body_fluid_force_parts(const stf_ode *c, dBodyID body, double parts[STF_ODE_PARTS][3])
+{
+    if (c->stats.last_substeps <= 1 || !(c->step_dt > 0)) /* one substep: its force */
+        sum_parts(c, body, c->part, 1.0, parts);
+    else
+        sum_parts(c, body, c->pimp, 1.0 / c->step_dt, parts);
 }
 
 int stf_ode_settle(stf_ode *c, double dt, int steps, double tau)

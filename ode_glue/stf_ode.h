@@ -161,6 +161,13 @@ STF_API const char *stf_ode_failure(const stf_ode *c);
 /* The force (N) and torque (N m, about the body's centre) the fluid put on body over the last
  * stf_ode_step: its substeps' impulses over dt; zero for a body that is not attached. */
 STF_API void stf_ode_body_fluid_force(const stf_ode *c, dBodyID body, double force[3], double torque[3]);
+/* The same force (N) by the part that gave it: the fluid's stages (STF_PART_PRESSURE,
+ * _VISCOSITY, _CONTACT, _STICK of stf.h) and the added-mass stabilisation's share
+ * (STF_ODE_PART_ADDED_MASS: what it held back from a light body and gave the fluid beside it,
+ * with its sign on the body). The parts sum to stf_ode_body_fluid_force's force. */
+enum { STF_ODE_PART_ADDED_MASS = STF_PARTS, STF_ODE_PARTS };
+STF_API void stf_ode_body_fluid_force_parts(const stf_ode *c, dBodyID body,
+                                            double parts[STF_ODE_PARTS][3]);
 
 /* Lets the fluid settle around the attached solids held still (their velocities taken as
  * zero, ODE not stepped) for `steps` steps of dt, each split into substeps as stf_ode_step

@@ -11,6 +11,8 @@
 int stf_ode_substep(stf_ode *c, double dt);
 /* The force and torque of body's colliders over the last substep (N, N m). */
 void stf_ode_substep_force(const stf_ode *c, dBodyID body, double force[3], double torque[3]);
+/* The same force by part (stf_ode_body_fluid_force_parts) over the last substep (N). */
+void stf_ode_substep_force_parts(const stf_ode *c, dBodyID body, double parts[STF_ODE_PARTS][3]);
 /* A kinematic body whose velocity the caller changes between substeps (a vibration): the
  * largest speed (m/s) its material reaches, taken by the thin-solid limit when larger than
  * its current speed. */

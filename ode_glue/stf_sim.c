@@ -321,10 +321,11 @@ int stf_sim_create_until(const stf_scene *scene, int (*stop)(void *arg), void *a
     s->freq = calloc((size_t)nb + 1, sizeof *s->freq);
     s->rng = calloc((size_t)nb + 1, sizeof *s->rng);
     s->fluid_impulse = calloc(3 * (size_t)nb + 1, sizeof *s->fluid_impulse);
+    s->fluid_parts = calloc(3 * STF_ODE_PARTS * (size_t)nb + 1, sizeof *s->fluid_parts);
     s->speed_bound = calloc((size_t)nb + 1, sizeof *s->speed_bound);
     s->force_bound = calloc((size_t)nb + 1, sizeof *s->force_bound);
     s->spin_radius = calloc((size_t)nb + 1, sizeof *s->spin_radius);
-    if (!s->bodies || !s->phase || !s->freq || !s->rng || !s->fluid_impulse ||
+    if (!s->bodies || !s->phase || !s->freq || !s->rng || !s->fluid_impulse || !s->fluid_parts ||
         !s->speed_bound || !s->force_bound || !s->spin_radius) {
         stf_sim_destroy(s);
         return snprintf(err, errlen, "out of memory"), 2;
@@ -425,6 +426,7 @@ void stf_sim_destroy(stf_sim *s)
     free(s->freq);
     free(s->rng);
     free(s->fluid_impulse);
+    free(s->fluid_parts);
     free(s->speed_bound);
     free(s->force_bound);
     free(s->spin_radius);
@@ -505,6 +507,7 @@ int stf_sim_step(stf_sim *s)
     stf_solver_stats *acc = &s->step_stats;
     memset(acc, 0, sizeof *acc);
     memset(s->fluid_impulse, 0, 3 * (size_t)sc->nbodies * sizeof *s->fluid_impulse);
+    memset(s->fluid_parts, 0, 3 * STF_ODE_PARTS * (size_t)sc->nbodies * sizeof *s->fluid_parts);
     for (int j = 0; j < m; j++) {
         double t = s->time + j * dt;
         for (int k = 0; k < sc->nbodies; k++)
@@ -525,9 +528,13 @@ int stf_sim_step(stf_sim *s)
         }
         if (check_bodies(s, j, m, dt) != 0) return -1;
         for (int k = 0; k < sc->nbodies; k++) {
-            double f[3], torque[3];
+            double f[3], torque[3], parts[STF_ODE_PARTS][3];
             stf_ode_substep_force(s->coupler, s->bodies[k], f, torque);
+            stf_ode_substep_force_parts(s->coupler, s->bodies[k], parts);
             for (int a = 0; a < 3; a++) s->fluid_impulse[3 * k + a] += f[a] * dt;
+            for (int p = 0; p < STF_ODE_PARTS; p++)
+                for (int a = 0; a < 3; a++)
+                    s->fluid_parts[3 * (STF_ODE_PARTS * k + p) + a] += parts[p][a] * dt;
         }
         /* A projection's statistics add up; the Carreau-Yasuda solver also splits the coupled
          * step again by its own CFL: count the substeps the fluid took. */
@@ -564,6 +571,13 @@ void stf_sim_body_state(const stf_sim *s, int k, double pos[3], double quat[4], 
     for (int a = 0; a < 3; a++) pos[a] = p[a], vel[a] = v[a], angvel[a] = w[a];
     for (int a = 0; a < 4; a++) quat[a] = q[a];
     for (int a = 0; a < 3; a++) force[a] = s->fluid_impulse[3 * k + a] / s->scene->dt;
+}
+
+void stf_sim_body_force_parts(const stf_sim *s, int k, double parts[STF_ODE_PARTS][3])
+{
+    for (int p = 0; p < STF_ODE_PARTS; p++)
+        for (int a = 0; a < 3; a++)
+            parts[p][a] = s->fluid_parts[3 * (STF_ODE_PARTS * k + p) + a] / s->scene->dt;
 }
 
 /* ---------------------------------------------------------------------- checkpoints */

@@ -21,6 +21,7 @@ typedef struct stf_sim {
     double *freq;           /* current vibration frequency, Hz */
     unsigned *rng;
     double *fluid_impulse;  /* per body, 3 each: the fluid's impulse over the last step (N s) */
+    double *fluid_parts;    /* per body, STF_ODE_PARTS x 3: that impulse by part (N s) */
     int removed;            /* particles removed at set-up because they overlapped bodies */
     long steps;             /* steps of the scene's dt taken */
     double time;            /* s, steps * dt */
@@ -76,6 +77,8 @@ const char *stf_sim_failure(const stf_sim *s);
  * the step's substeps divided by the scene's dt. */
 void stf_sim_body_state(const stf_sim *s, int k, double pos[3], double quat[4], double vel[3],
                         double angvel[3], double force[3]);
+/* That force by part (stf_ode_body_fluid_force_parts), over the same step (N). */
+void stf_sim_body_force_parts(const stf_sim *s, int k, double parts[STF_ODE_PARTS][3]);
 
 /* Checkpoints (`stf run --resume`): adds the run's state to st (the fluid's, the bodies'
  * poses and velocities, the space's geom order, the vibration phases and random states, the

@@ -51,6 +51,6 @@ void stf_boundary_stick(stf_fluid *f, double dt)
         char *hit = f->hit;
 #pragma omp parallel for schedule(static)
         for (int i = 0; i < n; i++) hit[i] = (char)stick_one(f, c, i, dt, f->dx);
-        stf_collider_take_reaction(c, f->dx, f->x, hit, n);
+        stf_collider_take_reaction(c, f->dx, f->x, hit, n, STF_PART_STICK);
     }
 }

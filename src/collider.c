@@ -484,7 +484,7 @@ void stf_collider_free(collider *c)
 }
 
 void stf_collider_take_reaction(collider *c, const double *imp, const double *x, const char *hit,
-                            int n)
+                            int n, int part)
 {
     double J[3] = {0, 0, 0}, M[3] = {0, 0, 0};
     for (int i = 0; i < n; i++) {
@@ -496,7 +496,7 @@ void stf_collider_take_reaction(collider *c, const double *imp, const double *x,
         M[1] -= r[2] * p[0] - r[0] * p[2];
         M[2] -= r[0] * p[1] - r[1] * p[0];
     }
-    for (int a = 0; a < 3; a++) c->impulse[a] += J[a], c->moment[a] += M[a];
+    for (int a = 0; a < 3; a++) c->impulse[a] += J[a], c->moment[a] += M[a], c->part[part][a] += J[a];
 }
 
 /* Projects particle i out of collider c, stops its approach, and applies Coulomb friction:
@@ -584,7 +584,10 @@ static void take_collisions(collider *c, const stf_fluid *f, double dt)
         M[1] -= r[2] * p[0] - r[0] * p[2] + md[2] * u[0] - md[0] * u[2];
         M[2] -= r[0] * p[1] - r[1] * p[0] + md[0] * u[1] - md[1] * u[0];
     }
-    for (int a = 0; a < 3; a++) c->impulse[a] += J[a], c->moment[a] += M[a], c->shift[a] += S[a];
+    for (int a = 0; a < 3; a++) {
+        c->impulse[a] += J[a], c->moment[a] += M[a], c->shift[a] += S[a];
+        c->part[STF_PART_CONTACT][a] += J[a];
+    }
 }
 
 void stf_collide_all(stf_fluid *f, double dt)

@@ -14,6 +14,7 @@ typedef struct collider {
     double vel[3];    /* m/s at pos */
     double angvel[3]; /* rad/s */
     double impulse[3];/* N s given to the collider during the last step */
+    double part[STF_PARTS][3]; /* the impulse by the stage that gave it (STF_PART_...) */
     double moment[3]; /* N m s, about pos */
     double shift[3];  /* kg m: sum of m delta of the overlap removal (stf_fluid_collider_shift) */
     double bound;     /* m: radius of a sphere around pos holding the solid (<0: unbounded) */
@@ -47,6 +48,6 @@ void stf_collider_velocity_at(const collider *c, const double x[3], double v[3])
  * predict-relax stages (the step ends at x = xprev + dt v, so m x × v moves by
  * xprev × m D / dt). */
 void stf_collider_take_reaction(collider *c, const double *imp, const double *x, const char *hit,
-                            int n);
+                            int n, int part);
 
 #endif

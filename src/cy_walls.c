@@ -280,6 +280,22 @@ void stf_cy_walls_one(stf_fluid *f, int i)
     c->lw[i] = lw;
 }
 
+/* The pressure's share of what stf_cy_wall_reactions gave collider col as viscous (the
+ * reactions dt m (k_i / rho_i) G of the particles the walls reach, in pj), moved to the
+ * pressure part: summed in particle order, so it does not depend on threads. */
+static void pressure_part(const stf_fluid *f, collider *col, const double *pj)
+{
+    const cy_state *c = f->cy;
+    double J[3] = {0, 0, 0};
+    for (int i = 0; i < f->n; i++)
+        if (c->hit[i])
+            for (int a = 0; a < 3; a++) J[a] += pj[3 * i + a];
+    for (int a = 0; a < 3; a++) {
+        col->part[STF_PART_PRESSURE][a] += J[a];
+        col->part[STF_PART_VISCOSITY][a] -= J[a];
+    }
+}
+
 /* The impulses the walls gave the particles during the step go back to the colliders:
  * pressure -dt (sum k_i / rho_i) G and, with viscous, viscous dt (the wall part of
  * viscous_one), the latter with the velocity u the viscous step evaluated (c->r,
@@ -297,6 +313,8 @@ void stf_cy_wall_reactions(stf_fluid *f, double dt, int viscous)
             c->hit[i] = (char)wall_term(f, col, i, G, &rho, &lap, M, vb);
             if (!c->hit[i]) continue;
             double ki = c->mirror * c->ktot[i] / c->rho[i];
+            if (viscous) /* the pressure's part, for pressure_part (Ap: the viscous solve's scratch) */
+                for (int a = 0; a < 3; a++) c->Ap[3 * i + a] = f->mass * dt * ki * G[a];
             if (!viscous) {
                 for (int a = 0; a < 3; a++) c->dv[3 * i + a] = -f->mass * dt * ki * G[a];
                 continue;
@@ -314,6 +332,8 @@ void stf_cy_wall_reactions(stf_fluid *f, double dt, int viscous)
             for (int a = 0; a < 3; a++)
                 c->dv[3 * i + a] = f->mass * dt * (ww * (c->r[3 * i + a] - vb[a]) - ki * G[a]);
         }
-        stf_collider_take_reaction(col, c->dv, f->x, c->hit, n);
+        stf_collider_take_reaction(col, c->dv, f->x, c->hit, n,
+                                   viscous ? STF_PART_VISCOSITY : STF_PART_PRESSURE);
+        if (viscous) pressure_part(f, col, c->Ap);
     }
 }

@@ -525,6 +525,11 @@ void stf_fluid_collider_impulse(const stf_fluid *f, int id, double impulse[3], d
     memcpy(moment, c->moment, sizeof c->moment);
 }
 
+void stf_fluid_collider_impulse_parts(const stf_fluid *f, int id, double parts[STF_PARTS][3])
+{
+    memcpy(parts, f->colliders[id].part, sizeof f->colliders[id].part);
+}
+
 void stf_fluid_collider_shift(const stf_fluid *f, int id, double shift[3])
 {
     memcpy(shift, f->colliders[id].shift, sizeof f->colliders[id].shift);
@@ -754,6 +759,7 @@ int stf_fluid_step(stf_fluid *f, double dt)
         memset(f->colliders[k].impulse, 0, sizeof f->colliders[k].impulse);
         memset(f->colliders[k].moment, 0, sizeof f->colliders[k].moment);
         memset(f->colliders[k].shift, 0, sizeof f->colliders[k].shift);
+        memset(f->colliders[k].part, 0, sizeof f->colliders[k].part);
     }
     if (f->def.model == STF_MODEL_CARREAU_YASUDA) return stf_cy_step(f, dt);
     if (has(f, STF_EFFECT_HISTORY) && f->hist.w == NULL && start_history(f, dt) != 0) goto oom;

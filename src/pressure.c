@@ -273,6 +273,6 @@ void stf_pressure_relax(stf_fluid *f, double dt)
         }
         /* at xprev: a displacement turns the particle about its position at the step's
            start (stf_collider_take_reaction) */
-        stf_collider_take_reaction(col, f->dx, f->xprev, hit, n);
+        stf_collider_take_reaction(col, f->dx, f->xprev, hit, n, STF_PART_PRESSURE);
     }
 }

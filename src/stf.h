@@ -376,6 +376,12 @@ STF_API int stf_fluid_remove_inside(stf_fluid *f, int id);
 /* The impulse (N s) the fluid gave collider id during the last step, and its moment about
  * the collider position (N m s). */
 STF_API void stf_fluid_collider_impulse(const stf_fluid *f, int id, double impulse[3], double moment[3]);
+/* Which stage gave the impulse above: the pressure (Clavet's relaxation or a projection, the
+ * walls' push), the viscosity (the Carreau-Yasuda walls' no-slip), the collision stage's
+ * contacts, and section 3.3's stick. Their sum is the impulse. */
+enum { STF_PART_PRESSURE, STF_PART_VISCOSITY, STF_PART_CONTACT, STF_PART_STICK, STF_PARTS };
+/* The impulse of the last step by part (N s, parts[STF_PART_...]). */
+STF_API void stf_fluid_collider_impulse_parts(const stf_fluid *f, int id, double parts[STF_PARTS][3]);
 /* The overlap removal's mass-weighted displacement (kg m) during the last step: the sum of
  * m delta over the particles collider id pushed out of itself by delta without changing
  * their velocity. A dynamic body of mass M moves by -shift / M to keep the centre of mass

@@ -7,7 +7,8 @@
 # over the volume it fills: the Clavet fluid at k = 1000 compresses by about 5 % under its
 # weight, and a body displaces the fluid that is there, not the nominal density). Without
 # the settling the same sphere feels -0.28 rho V g in its first step (the lattice starts
-# without pressure: fluid and body fall together).
+# without pressure: fluid and body fall together). The force's parts (fluid_force_parts:
+# pressure, viscosity, contacts, stick, added mass) must sum to it.
 # Args: STF_BINARY PROJECT_DIR
 . "$(dirname "$0")/lib_cli.sh" cli_buoyancy "$@"
 stf=$STF
@@ -30,6 +31,17 @@ want = rho * 9.81 * V
 err = F / want - 1
 print("cli_buoyancy: R = %s spacings: fluid density %.1f kg/m^3, force %s N, rho V g %.4f N, "
       "errors %s" % (RS, rho, np.round(F, 4), want, np.round(err, 4)))
+# the force by part (pressure, viscosity, contacts, stick, added mass) sums to it, and the
+# parts this scene has no effect for (no stick; a held body takes no added mass) are zero
+P = f["bodies/ball/fluid_force_parts"][:].reshape(-1, 5, 3)
+Fall = f["bodies/ball/fluid_force"][:]
+gap = abs(P.sum(axis=1) - Fall).max()
+if gap > 1e-9 * abs(Fall).max() or abs(P[:, 3:]).max() != 0:
+    print("cli_buoyancy: R = %s spacings: the parts do not add up to the force (%.3g N) or "
+          "stick / added mass are not zero" % (RS, gap))
+    sys.exit(1)
+print("cli_buoyancy: R = %s spacings: of the force, the pressure carries %.3f, the contacts %.3f"
+      % (RS, P[1:3, 0, 2].mean() / F.mean(), P[1:3, 2, 2].mean() / F.mean()))
 sys.exit(0 if np.all(abs(err) < 0.05) else 1)
 PY
 done

@@ -80,10 +80,10 @@ static void write_file(const char *path)
     for (int row = 0; row < NROWS; row++) {
         double t, p[3], q[4], v[3], w[3], fo[3];
         body_row(row, &t, p, q, v, w, fo);
-        CHECK(stf_h5_body_append(h, "ball", t, p, q, v, w, fo) == 0, "body row %d", row);
-        if (row < 2) CHECK(stf_h5_body_append(h, "box", t, p, q, v, w, fo) == 0, "box row");
+        CHECK(stf_h5_body_append(h, "ball", t, p, q, v, w, fo, NULL) == 0, "body row %d", row);
+        if (row < 2) CHECK(stf_h5_body_append(h, "box", t, p, q, v, w, fo, NULL) == 0, "box row");
     }
-    CHECK(stf_h5_body_append(h, "a/b", 0, frame_t, frame_t, frame_t, frame_t, frame_t) != 0,
+    CHECK(stf_h5_body_append(h, "a/b", 0, frame_t, frame_t, frame_t, frame_t, frame_t, NULL) != 0,
           "body name with a slash accepted");
     CHECK(stf_h5_write_metrics_json(h, "{\"x\": 1}") == 0, "metrics");
     CHECK(stf_h5_close(h, err, sizeof err) == 0, "close: %s", err);
@@ -367,7 +367,7 @@ static void check_shared(void)
         CHECK(file_has(xpath, "TopologyType=\"Triangle\""), "sidecar %d: no body grid", fr);
         /* released: body rows wait in memory */
         for (int row = 0; row < 2; row++)
-            CHECK(stf_h5_body_append(h, "ball", fr + 0.1 * row, p, q, zero, zero, zero) == 0,
+            CHECK(stf_h5_body_append(h, "ball", fr + 0.1 * row, p, q, zero, zero, zero, NULL) == 0,
                   "row while released: %s", stf_h5_last_error(h));
         stf_h5r *r = NULL; /* a reader between frames (this process: the file is closed) */
         CHECK(stf_h5r_open(path, &r, err, sizeof err) == 0, "open between frames: %s", err);

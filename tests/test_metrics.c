@@ -175,7 +175,7 @@ static void write_path(stf_h5 *h, const char *name, const double x0[3], const pa
             if (dt > 0)
                 for (int c = 0; c < 3; c++) pos[c] += ph[j].v[c] * dt;
         }
-        CHECK(stf_h5_body_append(h, name, t, pos, q, ph[k].v, ph[k].w, f) == 0, "row %d", i);
+        CHECK(stf_h5_body_append(h, name, t, pos, q, ph[k].v, ph[k].w, f, NULL) == 0, "row %d", i);
     }
 }
 
@@ -296,7 +296,7 @@ static void test_bounce_at_end(const char *path)
     const double q[4] = {1, 0, 0, 0}, w[3] = {0}, f[3] = {0}, zs[] = {0.16, 0.14, 0.12, 0.14};
     for (int i = 0; i < 4; i++) {
         double pos[3] = {0.1, 0.1, zs[i]}, vel[3] = {0, 0, 0};
-        CHECK(stf_h5_body_append(h, "ball", 0.01 * i, pos, q, vel, w, f) == 0, "row %d", i);
+        CHECK(stf_h5_body_append(h, "ball", 0.01 * i, pos, q, vel, w, f, NULL) == 0, "row %d", i);
     }
     stf_metrics m;
     close_and_measure(h, path, &m);
@@ -317,7 +317,7 @@ static void test_turned_slab(const char *path)
     const double q[4] = {sqrt(0.5), 0, sqrt(0.5), 0}, w[3] = {0}, f[3] = {0};
     for (int i = 0; i <= 40; i++) {
         double t = 0.005 * i, pos[3] = {0.1, 0.1, 0.202 - t}, vel[3] = {0, 0, -1};
-        CHECK(stf_h5_body_append(h, "slab", t, pos, q, vel, w, f) == 0, "row %d", i);
+        CHECK(stf_h5_body_append(h, "slab", t, pos, q, vel, w, f, NULL) == 0, "row %d", i);
     }
     stf_metrics m;
     close_and_measure(h, path, &m);
@@ -339,7 +339,7 @@ static void test_no_fluid(const char *path)
     const double q[4] = {1, 0, 0, 0}, w[3] = {0}, f[3] = {0};
     for (int i = 0; i < 4; i++) {
         double pos[3] = {0, 0, 0.1 - 0.0001 * i}, vel[3] = {0, 0, -0.01};
-        CHECK(stf_h5_body_append(h, "ball", 0.01 * i, pos, q, vel, w, f) == 0, "row %d", i);
+        CHECK(stf_h5_body_append(h, "ball", 0.01 * i, pos, q, vel, w, f, NULL) == 0, "row %d", i);
     }
     stf_metrics m;
     close_and_measure(h, path, &m);
@@ -375,7 +375,7 @@ static void test_nan_body_json(const char *path)
     if (!h) return;
     const double q[4] = {1, 0, 0, 0}, w[3] = {0}, f[3] = {0};
     double pos[3] = {0, 0, NAN}, vel[3] = {0};
-    CHECK(stf_h5_body_append(h, "ball", 0.0, pos, q, vel, w, f) == 0, "row");
+    CHECK(stf_h5_body_append(h, "ball", 0.0, pos, q, vel, w, f, NULL) == 0, "row");
     stf_metrics m;
     close_and_measure(h, path, &m);
     char *json = stf_metrics_json(&m);

@@ -276,12 +276,15 @@ static int write_frame(stf_h5 *h, const stf_sim *sim, frame_buf *b)
     return 0;
 }
 
+_Static_assert((int)STF_H5_FORCE_PARTS == (int)STF_ODE_PARTS, "the output's force parts are the coupler's");
+
 static int write_bodies(stf_h5 *h, const stf_sim *sim)
 {
     for (int k = 0; k < sim->scene->nbodies; k++) {
-        double p[3], q[4], v[3], w[3], F[3];
+        double p[3], q[4], v[3], w[3], F[3], parts[STF_ODE_PARTS][3];
         stf_sim_body_state(sim, k, p, q, v, w, F);
-        if (stf_h5_body_append(h, sim->scene->bodies[k].name, sim->time, p, q, v, w, F) != 0)
+        stf_sim_body_force_parts(sim, k, parts);
+        if (stf_h5_body_append(h, sim->scene->bodies[k].name, sim->time, p, q, v, w, F, &parts[0][0]) != 0)
             return -1;
     }
     return 0;

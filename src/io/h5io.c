@@ -30,11 +30,14 @@
 static const char *const pos_names[3] = {"x", "y", "z"};
 static const char *const vel_names[3] = {"vx", "vy", "vz"};
 
-/* The six body series: dataset name and columns (0 = one-dimensional). */
-enum { BODY_SERIES = 6 };
-static const char *const body_names[BODY_SERIES] = {
-    "time", "position", "quaternion", "velocity", "angular_velocity", "fluid_force"};
-static const int body_cols[BODY_SERIES] = {0, 3, 4, 3, 3, 3};
+/* The body series: dataset name and columns (0 = one-dimensional). The first BODY_SERIES
+ * are every file's (the reader needs them); fluid_force_parts (stf_h5_body_append) came
+ * later: a file without it is read and resumed without it. */
+enum { BODY_SERIES = 6, BODY_PARTS = BODY_SERIES, BODY_ALL };
+static const char *const body_names[BODY_ALL] = {
+    "time", "position", "quaternion", "velocity", "angular_velocity", "fluid_force",
+    "fluid_force_parts"};
+static const int body_cols[BODY_ALL] = {0, 3, 4, 3, 3, 3, 3 * STF_H5_FORCE_PARTS};
 
 static void fmt_err(char *err, size_t errlen, const char *fmt, ...)
 {
@@ -83,7 +86,7 @@ typedef struct frame_info {
  * opening, before anything else. */
 typedef struct pending_row {
     char *name;
-    double v[19]; /* t, pos[3], quat[4], vel[3], angvel[3], force[3] */
+    double v[19 + 3 * STF_H5_FORCE_PARTS]; /* t, pos[3], quat[4], vel[3], angvel[3], force[3], parts */
 } pending_row;
 
 /* A body with a surface mesh under /body_meshes/NAME (stf_h5_body_mesh). */
@@ -605,9 +608,11 @@ done:
     return rc;
 }
 
-static int body_rows(hid_t body, int created, const double *const rows[BODY_SERIES])
+static int body_rows(hid_t body, int created, const double *const rows[BODY_ALL])
 {
-    for (int s = 0; s < BODY_SERIES; s++) {
+    for (int s = 0; s < BODY_ALL; s++) {
+        if (s == BODY_PARTS && !created && H5Lexists(body, body_names[s], H5P_DEFAULT) <= 0)
+            continue; /* a resumed file from before the parts */
         if (created && create_series(body, body_names[s], body_cols[s]) != 0) return -1;
         if (append_row(body, body_names[s], body_cols[s], rows[s]) != 0) return -1;
     }
@@ -615,7 +620,7 @@ static int body_rows(hid_t body, int created, const double *const rows[BODY_SERI
 }
 
 /* Appends one row to /bodies/NAME without flushing. */
-static int put_body_row(stf_h5 *h, const char *name, const double *const rows[BODY_SERIES])
+static int put_body_row(stf_h5 *h, const char *name, const double *const rows[BODY_ALL])
 {
     int created = 0;
     hid_t bodies = open_or_create_group(h->file, "bodies", NULL);
@@ -628,11 +633,11 @@ static int put_body_row(stf_h5 *h, const char *name, const double *const rows[BO
 }
 
 /* Where each series starts in a pending_row's values. */
-static const int row_at[BODY_SERIES] = {0, 1, 4, 8, 11, 14};
+static const int row_at[BODY_ALL] = {0, 1, 4, 8, 11, 14, 17};
 
-static void unpack_row(const pending_row *p, const double *rows[BODY_SERIES])
+static void unpack_row(const pending_row *p, const double *rows[BODY_ALL])
 {
-    for (int s = 0; s < BODY_SERIES; s++) rows[s] = p->v + row_at[s];
+    for (int s = 0; s < BODY_ALL; s++) rows[s] = p->v + row_at[s];
 }
 
 static void free_pending(stf_h5 *h)
@@ -645,7 +650,7 @@ static int write_pending(stf_h5 *h)
 {
     int rc = 0;
     for (int i = 0; i < h->npending && rc == 0; i++) {
-        const double *rows[BODY_SERIES];
+        const double *rows[BODY_ALL];
         unpack_row(&h->pending[i], rows);
         rc = put_body_row(h, h->pending[i].name, rows);
     }
@@ -658,7 +663,7 @@ static int write_pending(stf_h5 *h)
 }
 
 /* Keeps a row for the next opening (the file is released). */
-static int keep_row(stf_h5 *h, const char *name, const double *const rows[BODY_SERIES])
+static int keep_row(stf_h5 *h, const char *name, const double *const rows[BODY_ALL])
 {
     if (h->npending == h->cap_pending) {
         int cap = h->cap_pending ? 2 * h->cap_pending : 64;
@@ -668,7 +673,7 @@ static int keep_row(stf_h5 *h, const char *name, const double *const rows[BODY_S
         h->cap_pending = cap;
     }
     pending_row *p = &h->pending[h->npending];
-    for (int s = 0; s < BODY_SERIES; s++)
+    for (int s = 0; s < BODY_ALL; s++)
         memcpy(p->v + row_at[s], rows[s], sizeof(double) * (size_t)(body_cols[s] ? body_cols[s] : 1));
     if (!(p->name = dup_str(name))) return -1;
     h->npending++;
@@ -677,14 +682,19 @@ static int keep_row(stf_h5 *h, const char *name, const double *const rows[BODY_S
 
 int stf_h5_body_append(stf_h5 *h, const char *name, double t, const double pos[3],
                        const double quat[4], const double vel[3], const double angvel[3],
-                       const double force[3])
+                       const double force[3], const double *parts)
 {
     if (!h) return -1;
+    double unknown[3 * STF_H5_FORCE_PARTS];
+    if (!parts) {
+        for (int q = 0; q < 3 * STF_H5_FORCE_PARTS; q++) unknown[q] = NAN;
+        parts = unknown;
+    }
     if (!name || !*name || strchr(name, '/') || !strcmp(name, ".")) {
         snprintf(h->err, sizeof h->err, "bad body name \"%s\"", name ? name : "(null)");
         return -1;
     }
-    const double *const rows[BODY_SERIES] = {&t, pos, quat, vel, angvel, force};
+    const double *const rows[BODY_ALL] = {&t, pos, quat, vel, angvel, force, parts};
     if (h->file < 0) {
         if (keep_row(h, name, rows) == 0) return 0;
         snprintf(h->err, sizeof h->err, "out of memory");
@@ -1698,7 +1708,9 @@ static int truncate_bodies(hid_t file, long rows)
     int rc = 0;
     for (int b = 0; b < l.count && rc == 0; b++) {
         hid_t body = H5Gopen2(g, l.names[b], H5P_DEFAULT);
-        for (int s = 0; s < BODY_SERIES && rc == 0; s++) {
+        for (int s = 0; s < BODY_ALL && rc == 0; s++) {
+            if (s == BODY_PARTS && body >= 0 && H5Lexists(body, body_names[s], H5P_DEFAULT) <= 0)
+                continue; /* a file from before the parts */
             hid_t d = body < 0 ? -1 : H5Dopen2(body, body_names[s], H5P_DEFAULT);
             hid_t sp = d < 0 ? -1 : H5Dget_space(d);
             hsize_t dims[2] = {0, 0};

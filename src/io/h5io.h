@@ -7,7 +7,8 @@
  *   /bodies/NAME          extendible double series: time[N], position[N][3],
  *                         quaternion[N][4] (w x y z), velocity[N][3],
  *                         angular_velocity[N][3], fluid_force[N][3] (N, the mean
- *                         over the step before the row)
+ *                         over the step before the row), fluid_force_parts[N][15]
+ *                         (the same force by part: stf_h5_body_append)
  *   /metrics              string attribute "json"
  *   /checkpoint           while a run goes: its state for `stf run --resume` (see below)
  *   /body_meshes/NAME     for viewers, a body's surface (stf_h5_body_mesh): vertices
@@ -58,10 +59,13 @@ int stf_h5_write_frame(stf_h5 *h, double t, int n, const double *xyz, const doub
 int stf_h5_frame_attr_double(stf_h5 *h, const char *name, double value);
 
 /* Appends one row to /bodies/NAME (created on first call). NAME must not contain '/'.
+ * parts: the fluid force by part (STF_H5_FORCE_PARTS rows of 3: pressure, viscosity,
+ * contacts, stick, added mass; stf_ode_body_fluid_force_parts), NULL when not known (NaN).
  * Flushes. Returns 0 or -1. */
+enum { STF_H5_FORCE_PARTS = 5 };
 int stf_h5_body_append(stf_h5 *h, const char *name, double t, const double pos[3],
                        const double quat[4], const double vel[3], const double angvel[3],
-                       const double force[3]);
+                       const double force[3], const double *parts);
 
 /* Writes /body_meshes/NAME/vertices and triangles: the surface of shape (a sphere, box,
  * capsule, cylinder or convex hull: body_mesh.h) in the body frame. Returns 0; 1 for a shape
