@@ -300,6 +300,7 @@ int stf_fluid_create(const stf_fluid_def *def, stf_fluid **out, char *err, size_
         f->def.k_hist *= r * r * r;
     }
     f->h = def->h > 0 ? def->h : 2.0 * def->spacing;
+    f->contact = 0.5 * def->spacing;
     f->mass = def->density * def->spacing * def->spacing * def->spacing;
     /* With tension the rest density balances near-pressure on the lattice (see above);
        without, both pressures start from zero on the lattice. */

@@ -10,7 +10,9 @@
 # stress is its viscosity's (the walls' no-slip, src/cy_walls.c); the collision stage's
 # friction on top of it, the default 0.2, is a drag per contact that grows as the step
 # shrinks (2 spacings: -15.5% at dt 2 ms, -18.8% at 1 ms, against -5.0% and -8.9% without).
-# Optional key=value: nu, dt, eta, density, settle, depth, frame_rate, friction.
+# Optional key=value: nu, dt, eta, density, settle, depth, frame_rate, friction; z (m, the
+# sphere's centre height instead of one tank width under the surface); pressure_solver,
+# warm_start, wall_pressure (added to the carreau_yasuda block).
 import sys
 RS = float(sys.argv[1])
 lam = float(sys.argv[2]) if len(sys.argv) > 2 else 0.25
@@ -18,7 +20,8 @@ dur = sys.argv[3] if len(sys.argv) > 3 else "0.3"
 kv = dict(a.split("=", 1) for a in sys.argv[4:])
 a = 0.0075; s = a / RS
 n = round(2 * a / lam / s)            # particles across the tank
-W = n * s; H = float(kv.get('depth', 2)) * n * s; zc = H - n * s
+W = n * s; H = float(kv.get('depth', 2)) * n * s; zc = float(kv.get('z', H - n * s))
+extra = "".join(f", {k}: {kv[k]}" for k in ("pressure_solver", "warm_start", "wall_pressure") if k in kv)
 nu = kv.get("nu", "1e-2")
 print(f"""name: settling_{RS:g}
 duration: {dur}
@@ -34,7 +37,7 @@ fluid:
       max: [{W / 2!r}, {W / 2!r}, {H!r}]
 effects:
   gravity: {{g: [0, 0, -9.81]}}
-  carreau_yasuda: {{mu0: {nu}, mu_inf: {nu}, n: 1, eta: {kv.get('eta', '0.001')}, max_pressure_iterations: 1000}}
+  carreau_yasuda: {{mu0: {nu}, mu_inf: {nu}, n: 1, eta: {kv.get('eta', '0.001')}, max_pressure_iterations: 1000{extra}}}
 container:
   size: [{W!r}, {W!r}, {H + 4 * s!r}]
   wall: {4 * s!r}
