@@ -507,7 +507,8 @@ static int collide_one(stf_fluid *f, const collider *c, int i, double dt, double
                        double *proj)
 {
     double *x = f->x + 3 * i;
-    double rp = f->contact, nrm[3];
+    int wall = c->def.shape == STF_SHAPE_CONTAINER || c->def.shape == STF_SHAPE_PLANE;
+    double rp = wall ? f->contact : f->contact_body, nrm[3];
     if (!stf_collider_near(c, x, rp)) return 0;
     double d = stf_collider_sdf(c, x, nrm);
     if (d >= rp) return 0;

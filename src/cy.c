@@ -106,8 +106,10 @@ int stf_cy_create(stf_fluid *f)
        half a spacing too it would stop every particle the pressure brings to the wall,
        carrying that pressure as one-sided contacts that brake a moving body (a sphere of 2
        spacings at density ratio 2, 10 cm deep: 1.4 rho V g on its contacts, sinking at 7
-       mm/s; 0 and 18-35 mm/s with the contacts at 0.3 spacings; tests/README.md). */
-    if (c->mirror > 1) f->contact = 0.3 * f->def.spacing;
+       mm/s; 0 and 18-35 mm/s with the contacts at 0.3 spacings; tests/README.md). The own
+       wall holds nothing by itself: its contacts stay at half a spacing, bodies' too (at a
+       quarter spacing a held sphere of 2 spacings felt 0.70 rho V g). */
+    f->contact = f->contact_body = (c->mirror > 1 ? 0.3 : 0.5) * f->def.spacing;
     f->cy = c;
     for (int a = 0; a < 3; a++) {
         f->grid.period[a] = f->def.periodic[a];

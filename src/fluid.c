@@ -300,7 +300,16 @@ int stf_fluid_create(const stf_fluid_def *def, stf_fluid **out, char *err, size_
         f->def.k_hist *= r * r * r;
     }
     f->h = def->h > 0 ? def->h : 2.0 * def->spacing;
+    /* The contacts act inside the distance at which the walls' pressure holds the fluid.
+       Clavet's mirror holds it at half a spacing from a body; contacts there too stop every
+       particle the pressure brings, and carry that pressure as one-sided contacts: a body
+       held in water felt 1.18, 1.06 and 1.02 rho V g at 1.5, 2 and 3 spacings of radius
+       (1.12, 1.05, 1.015 with them at 0.3 spacings; tests/README.md, "Buoyancy by
+       radius"). At the container the contacts stay at half a spacing: there they quiet the
+       pool (at 0.3 its wall layers sink to them and the still pool's motion grows two to
+       three times; scenes/README.md, the bowling ball). cy.c sets the Carreau-Yasuda walls'. */
     f->contact = 0.5 * def->spacing;
+    f->contact_body = 0.3 * def->spacing;
     f->mass = def->density * def->spacing * def->spacing * def->spacing;
     /* With tension the rest density balances near-pressure on the lattice (see above);
        without, both pressures start from zero on the lattice. */

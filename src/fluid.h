@@ -26,7 +26,8 @@ enum stage {
 struct stf_fluid {
     stf_fluid_def def;
     double h;            /* interaction radius, m */
-    double contact;      /* the collision stage's contact radius, m (collider.c:collide_one) */
+    double contact;      /* the collision stage's contact radius at the container and planes, m */
+    double contact_body; /* ... and at every other collider (bodies), m (collider.c:collide_one) */
     double mass;         /* particle mass, kg */
     double rest_density; /* kernel rest density used (def's, or the lattice's) */
     double rest_near;    /* near density below which near-pressure is 0 (no tension) */
