@@ -199,17 +199,17 @@ void stf_ode_set_peak_speed(stf_ode *c, dBodyID body, double speed)
 
 static int push(stf_ode *c, attachment a, char *err, size_t errlen)
 {
+    /* the per-attachment arrays and the doubles each attachment has in them */
+    double **arr[6] = {&c->force, &c->torque, &c->imp, &c->aimp, &c->part, &c->pimp};
+    const size_t width[6] = {3, 3, 3, 3, 3 * STF_ODE_PARTS, 3 * STF_ODE_PARTS};
     if (c->n == c->cap) {
         int cap = c->cap ? 2 * c->cap : 8;
         attachment *att = realloc(c->att, (size_t)cap * sizeof *att);
         if (att) c->att = att;
-        double **arr[4] = {&c->force, &c->torque, &c->imp, &c->aimp};
         int ok = att != NULL;
-        double **parr[2] = {&c->part, &c->pimp};
         for (int q = 0; q < 6; q++) {
-            size_t len = (size_t)cap * 3 * (q < 4 ? 1 : STF_ODE_PARTS);
-            double **ar = q < 4 ? arr[q] : parr[q - 4], *p = realloc(*ar, len * sizeof *p);
-            if (p) *ar = p;
+            double *p = realloc(*arr[q], (size_t)cap * width[q] * sizeof *p);
+            if (p) *arr[q] = p;
             else ok = 0;
         }
         if (!ok) {
@@ -218,12 +218,7 @@ static int push(stf_ode *c, attachment a, char *err, size_t errlen)
         }
         c->cap = cap;
     }
-    memset(c->force + 3 * c->n, 0, 3 * sizeof *c->force);
-    memset(c->torque + 3 * c->n, 0, 3 * sizeof *c->torque);
-    memset(c->imp + 3 * c->n, 0, 3 * sizeof *c->imp);
-    memset(c->aimp + 3 * c->n, 0, 3 * sizeof *c->aimp);
-    memset(c->part + 3 * STF_ODE_PARTS * c->n, 0, 3 * STF_ODE_PARTS * sizeof *c->part);
-    memset(c->pimp + 3 * STF_ODE_PARTS * c->n, 0, 3 * STF_ODE_PARTS * sizeof *c->pimp);
+    for (int q = 0; q < 6; q++) memset(*arr[q] + width[q] * (size_t)c->n, 0, width[q] * sizeof **arr[q]);
     c->att[c->n++] = a;
     return 0;
 }

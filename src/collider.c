@@ -502,13 +502,11 @@ void stf_collider_take_reaction(collider *c, const double *imp, const double *x,
 /* Projects particle i out of collider c, stops its approach, and applies Coulomb friction:
  * the tangential slip relative to the surface drops by at most friction times the normal
  * velocity change, so the result does not depend on dt. Stores the impulse given to the
- * particle in imp and the projection in proj. Returns 1 on contact. */
-static int collide_one(stf_fluid *f, const collider *c, int i, double dt, double *imp,
-                       double *proj)
+ * particle in imp and the projection in proj. rp: the contact radius (m). Returns 1 on contact. */
+static int collide_one(stf_fluid *f, const collider *c, int i, double dt, double rp,
+                       double *imp, double *proj)
 {
-    double *x = f->x + 3 * i;
-    int wall = c->def.shape == STF_SHAPE_CONTAINER || c->def.shape == STF_SHAPE_PLANE;
-    double rp = wall ? f->contact : f->contact_body, nrm[3];
+    double *x = f->x + 3 * i, nrm[3];
     if (!stf_collider_near(c, x, rp)) return 0;
     double d = stf_collider_sdf(c, x, nrm);
     if (d >= rp) return 0;
@@ -597,8 +595,11 @@ void stf_collide_all(stf_fluid *f, double dt)
     for (int k = 0; k < f->ncolliders; k++) {
         collider *c = &f->colliders[k];
         char *hit = f->hit;
+        /* the contact radius (fluid.c, cy.c): the container's and the planes', or a body's */
+        int wall = c->def.shape == STF_SHAPE_CONTAINER || c->def.shape == STF_SHAPE_PLANE;
+        double rp = wall ? f->contact : f->contact_body;
 #pragma omp parallel for schedule(static)
-        for (int i = 0; i < n; i++) hit[i] = (char)collide_one(f, c, i, dt, f->dx, f->dproj);
+        for (int i = 0; i < n; i++) hit[i] = (char)collide_one(f, c, i, dt, rp, f->dx, f->dproj);
         take_collisions(c, f, dt);
     }
 }

@@ -608,11 +608,16 @@ done:
     return rc;
 }
 
+/* Series s of an existing body is missing: fluid_force_parts in a file from before it. */
+static int series_missing(hid_t body, int s)
+{
+    return s == BODY_PARTS && H5Lexists(body, body_names[s], H5P_DEFAULT) <= 0;
+}
+
 static int body_rows(hid_t body, int created, const double *const rows[BODY_ALL])
 {
     for (int s = 0; s < BODY_ALL; s++) {
-        if (s == BODY_PARTS && !created && H5Lexists(body, body_names[s], H5P_DEFAULT) <= 0)
-            continue; /* a resumed file from before the parts */
+        if (!created && series_missing(body, s)) continue; /* a resumed file from before it */
         if (created && create_series(body, body_names[s], body_cols[s]) != 0) return -1;
         if (append_row(body, body_names[s], body_cols[s], rows[s]) != 0) return -1;
     }
@@ -1709,8 +1714,7 @@ static int truncate_bodies(hid_t file, long rows)
     for (int b = 0; b < l.count && rc == 0; b++) {
         hid_t body = H5Gopen2(g, l.names[b], H5P_DEFAULT);
         for (int s = 0; s < BODY_ALL && rc == 0; s++) {
-            if (s == BODY_PARTS && body >= 0 && H5Lexists(body, body_names[s], H5P_DEFAULT) <= 0)
-                continue; /* a file from before the parts */
+            if (body >= 0 && series_missing(body, s)) continue;
             hid_t d = body < 0 ? -1 : H5Dopen2(body, body_names[s], H5P_DEFAULT);
             hid_t sp = d < 0 ? -1 : H5Dget_space(d);
             hsize_t dims[2] = {0, 0};
