@@ -70,6 +70,12 @@ int stf_cy_check_def(const stf_fluid_def *d, char *err, size_t errlen)
         FAIL("pressure_solver: must be jacobi or cg (got %d)", c->pressure_solver);
     if (c->wall_pressure != STF_WALL_PRESSURE_OWN && c->wall_pressure != STF_WALL_PRESSURE_MIRROR)
         FAIL("wall_pressure: must be own or mirror (got %d)", c->wall_pressure);
+    if (c->pressure_gradient != STF_PRESSURE_GRADIENT_SYMMETRIC &&
+        c->pressure_gradient != STF_PRESSURE_GRADIENT_LOCAL_MINIMUM)
+        FAIL("pressure_gradient: must be symmetric or local_minimum (got %d)", c->pressure_gradient);
+    if (c->pressure_gradient == STF_PRESSURE_GRADIENT_LOCAL_MINIMUM && c->pressure_solver != STF_PRESSURE_JACOBI)
+        FAIL("pressure_gradient: local_minimum needs pressure_solver jacobi (conjugate "
+             "gradients need the symmetric form's symmetric matrix)");
     if (c->viscosity_form != STF_VISCOSITY_MORRIS && c->viscosity_form != STF_VISCOSITY_CENTRAL)
         FAIL("viscosity_form: must be morris or central (got %d)", c->viscosity_form);
     if (!(c->cg_tolerance > 0 && c->cg_tolerance < 1))
@@ -406,7 +412,7 @@ int stf_cy_describe(const stf_fluid *f, char *buf, size_t len)
                     "model: carreau_yasuda\nmu0: %.9g  # m^2/s\nmu_inf: %.9g  # m^2/s\n"
                     "K: %.9g  # s\nalpha: %.9g\nn: %.9g\neta: %.9g\n"
                     "min_pressure_iterations: %d\nmax_pressure_iterations: %d\n"
-                    "pressure_solver: %s\nwall_pressure: %s\nviscosity_solver: %s\n"
+                    "pressure_solver: %s\nwall_pressure: %s\npressure_gradient: %s\nviscosity_solver: %s\n"
                     "viscosity_form: %s\ncg_tolerance: %.9g\n"
                     "max_cg_iterations: %d\n"
                     "cfl: %.9g\ndt_max: %.9g  # s\nwarm_start: %.9g\nrelaxation: %.9g\n"
@@ -415,6 +421,8 @@ int stf_cy_describe(const stf_fluid *f, char *buf, size_t len)
                     c->max_pressure_iterations,
                     c->pressure_solver == STF_PRESSURE_CG ? "cg" : "jacobi",
                     c->wall_pressure == STF_WALL_PRESSURE_MIRROR ? "mirror" : "own",
+                    c->pressure_gradient == STF_PRESSURE_GRADIENT_LOCAL_MINIMUM ? "local_minimum"
+                                                                                : "symmetric",
                     c->viscosity_solver == STF_VISCOSITY_EXPLICIT ? "explicit" : "implicit",
                     c->viscosity_form == STF_VISCOSITY_CENTRAL ? "central" : "morris",
                     c->cg_tolerance, c->max_cg_iterations, c->cfl, c->dt_max, c->warm_start,

@@ -17,10 +17,12 @@
  * The projection is Jacobi with the full k_i of Eq. 21 (no relaxation), from zero
  * pressure each step, as Algorithm 1, unless the scene asks for relaxation and warm_start
  * (see stf_cy_pressure_project), or for conjugate gradients (pressure_solver cg, ours: see
- * stf_cy_pressure_project_cg, below). */
+ * stf_cy_pressure_project_cg, below). With pressure_gradient local_minimum (ours) the
+ * particles feel the pressures offset by their neighbourhood's least (grad_min_at). */
 #include "cy_internal.h"
 
 #include <math.h>
+#include <string.h>
 
 /* u = (G y)_i: the velocity change -dt u of the pressures y = k / rho at particle i (Algorithm
  * 1's last loop; the conjugate gradients below). */
@@ -36,6 +38,34 @@ static void grad_at(const stf_fluid *f, const double *y, int i, double u[3])
         d[2] += w * pr->g[2];
     }
     for (int a = 0; a < 3; a++) u[a] = m * d[a] + c->mirror * yi * c->gw[3 * i + a];
+}
+
+/* The same with the pressures offset by the least of particle i's and its neighbours'
+ * (pressure_gradient local_minimum, ours): u = sum_j m (y_j - y_min) grad W_ij + (mirror / 2)
+ * (y_i - y_min) G_w,i, the wall's lattice carrying y_i as in the mirror (own: half of it, as
+ * in the symmetric form). Every pair still pushes apart (y_j >= y_min), as in the moving
+ * particle semi-implicit method's gradient (Koshizuka and Oka 1996), but a pressure that is
+ * uniform over the neighbourhood pushes no particle: the symmetric form's
+ * y (sum_j m grad W_ij + G_w,i) of an irregular neighbourhood is a restoring force
+ * proportional to the absolute pressure, which resists every rearrangement of the packing,
+ * as a granular medium's friction grows with its confining pressure. It is that friction
+ * that held a settling sphere 10 cm deep in a thin oil (tests/README.md). The walls' reactions
+ * (stf_cy_wall_reactions) keep the absolute pressure: a body feels the pressure on its
+ * surface, the particles its gradient, so the two no longer exchange equal and opposite
+ * impulses. Not linear in y: the Jacobi projection re-applies the total pressure. */
+static void grad_min_at(const stf_fluid *f, const double *y, int i, double u[3])
+{
+    const cy_state *c = f->cy;
+    double yi = y[i], lo = yi, d[3] = {0, 0, 0}, gs[3] = {0, 0, 0};
+    const cy_pair *pr = c->pair + c->off[i], *end = c->pair + c->off[i + 1];
+    for (; pr < end; pr++) {
+        double yj = y[pr->j];
+        lo = yj < lo ? yj : lo;
+        d[0] += yj * pr->g[0], d[1] += yj * pr->g[1], d[2] += yj * pr->g[2];
+        gs[0] += pr->g[0], gs[1] += pr->g[1], gs[2] += pr->g[2];
+    }
+    double w = 0.5 * c->mirror * (yi - lo);
+    for (int a = 0; a < 3; a++) u[a] = f->mass * (d[a] - lo * gs[a]) + w * c->gw[3 * i + a];
 }
 
 static void grad_one(const stf_fluid *f, const double *y, double *u, int i)
@@ -113,11 +143,58 @@ static double mean_error(const stf_fluid *f)
  * floor layer with omega = 1 and ran with omega = 0.5 and warm_start 0.5 (measured).
  * kappa, kr and ktot were set by the density pass (the warm start, or zero). Each iteration
  * is two neighbour passes: the velocity change, then rho* with the next k_i. */
+/* Algorithm 1 with the local-minimum gradient: as stf_cy_pressure_project, but each
+ * iteration adds its k_i to the total and sets the velocities from the velocities before the
+ * projection (v0, in the scratch c->dv) and the whole pressure (y = ktot / rho, in c->b). */
+static void apply_total(stf_fluid *f, const double *kappa, double dt)
+{
+    cy_state *c = f->cy;
+    int n = f->n;
+    double *v0 = c->dv, *y = c->b;
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++) {
+        c->ktot[i] += kappa[i];
+        y[i] = c->ktot[i] * c->irho[i];
+    }
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++) {
+        double u[3];
+        grad_min_at(f, y, i, u);
+        for (int a = 0; a < 3; a++) f->v[3 * i + a] = v0[3 * i + a] - dt * u[a];
+    }
+}
+
+static void project_local_minimum(stf_fluid *f, double dt, double w, double omega)
+{
+    cy_state *c = f->cy;
+    int n = f->n, iter = 0;
+    double err;
+    memcpy(c->dv, f->v, (size_t)n * 3 * sizeof *f->v);
+    if (w > 0) apply_total(f, c->kappa, dt); /* the warm start (kappa: the density pass's) */
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++) predict_kappa_one(f, f->v, i, dt, omega);
+    do {
+        apply_total(f, c->kappa, dt);
+#pragma omp parallel for schedule(static)
+        for (int i = 0; i < n; i++) predict_kappa_one(f, f->v, i, dt, omega);
+        err = mean_error(f);
+        iter++;
+    } while ((err > f->def.cy.eta || iter < f->def.cy.min_pressure_iterations) &&
+             iter < f->def.cy.max_pressure_iterations);
+    c->warm_n = n;
+    c->stats.pressure_iterations = iter;
+    c->stats.density_error = err;
+}
+
 void stf_cy_pressure_project(stf_fluid *f, double dt, double w)
 {
     cy_state *c = f->cy;
     int n = f->n, iter = 0;
     double err, omega = f->def.cy.relaxation > 0 ? f->def.cy.relaxation : 1.0;
+    if (f->def.cy.pressure_gradient == STF_PRESSURE_GRADIENT_LOCAL_MINIMUM) {
+        project_local_minimum(f, dt, w, omega);
+        return;
+    }
     if (w > 0) {
 #pragma omp parallel for schedule(static)
         for (int i = 0; i < n; i++) pressure_dv_one(f, i, dt);

@@ -78,7 +78,8 @@ static const char *cy_field(const char *msg)
         "cy.mu0", "cy.mu_inf", "cy.K", "cy.alpha", "cy.n", "cy.eta",
         "cy.min_pressure_iterations", "cy.max_pressure_iterations", "cy.viscosity_solver",
         "cy.viscosity_form", "cy.cg_tolerance", "cy.max_cg_iterations", "cy.warm_start",
-        "cy.relaxation", "cy.dt_max", "cy.cfl", "cy.pressure_solver", "cy.wall_pressure", "effects", "periodic", "periodic_origin", NULL};
+        "cy.relaxation", "cy.dt_max", "cy.cfl", "cy.pressure_solver", "cy.wall_pressure",
+        "cy.pressure_gradient", "effects", "periodic", "periodic_origin", NULL};
     size_t n = strcspn(msg, ":");
     for (int i = 0; fields[i]; i++) {
         const char *name = strncmp(fields[i], "cy.", 3) ? fields[i] : fields[i] + 3;
@@ -163,6 +164,14 @@ int stf_fluid_check_def(const stf_fluid_def *d, char *err, size_t errlen, const 
         if (c->wall_pressure != STF_WALL_PRESSURE_OWN && c->wall_pressure != STF_WALL_PRESSURE_MIRROR)
             BAD("pressure.wall_pressure", "wall_pressure: must be own or mirror (got %d)",
                 c->wall_pressure);
+        if (c->pressure_gradient != STF_PRESSURE_GRADIENT_SYMMETRIC &&
+            c->pressure_gradient != STF_PRESSURE_GRADIENT_LOCAL_MINIMUM)
+            BAD("pressure.gradient", "gradient: must be symmetric or local_minimum (got %d)",
+                c->pressure_gradient);
+        if (c->pressure_gradient == STF_PRESSURE_GRADIENT_LOCAL_MINIMUM &&
+            c->pressure_solver != STF_PRESSURE_JACOBI)
+            BAD("pressure.gradient", "gradient: local_minimum needs solver jacobi (conjugate "
+                                     "gradients need the symmetric form's symmetric matrix)");
         if (!(c->cg_tolerance > 0 && c->cg_tolerance < 1))
             BAD("pressure.cg_tolerance", "cg_tolerance: must be in (0,1) (got %g)", c->cg_tolerance);
         if (!(c->max_cg_iterations >= 1 && c->max_cg_iterations <= 100000))
@@ -1017,10 +1026,13 @@ int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
         w += snprintf(buf + w, len - (size_t)w,
                       "pressure_mode: projection  # k, k_near, rest_density unused\n"
                       "pressure_eta: %.9g\npressure_solver: %s\npressure_wall_pressure: %s\n"
+                      "pressure_gradient: %s\n"
                       "pressure_iterations: [%d, %d]\npressure_warm_start: %.9g\n"
                       "projection_rest_density: %.9g  # kg/m^3, the cubic spline's lattice sum\n",
                       d->cy.eta, d->cy.pressure_solver == STF_PRESSURE_CG ? "cg" : "jacobi",
                       d->cy.wall_pressure == STF_WALL_PRESSURE_MIRROR ? "mirror" : "own",
+                      d->cy.pressure_gradient == STF_PRESSURE_GRADIENT_LOCAL_MINIMUM ? "local_minimum"
+                                                                                     : "symmetric",
                       d->cy.min_pressure_iterations, d->cy.max_pressure_iterations,
                       d->cy.warm_start, stf_fluid_cy_rest_density(f));
     if (d->history_mode == STF_HISTORY_SOE && w >= 0 && (size_t)w < len)

@@ -114,6 +114,15 @@ enum stf_wall_pressure {
                                      and sees its approach as a mirror: twice the wall term */
 };
 
+/* The particles' pressure force in the Carreau-Yasuda projection (cy_pressure.c). */
+enum stf_pressure_gradient {
+    STF_PRESSURE_GRADIENT_SYMMETRIC = 0,     /* the paper's: sum_j m (k_i/rho_i + k_j/rho_j) grad W */
+    STF_PRESSURE_GRADIENT_LOCAL_MINIMUM = 1, /* ours: sum_j m (k_j/rho_j - min) grad W, the
+                                                pressures offset by their neighbourhood's least
+                                                (Koshizuka and Oka 1996): a uniform pressure
+                                                pushes no particle (jacobi only) */
+};
+
 enum stf_viscosity_solver {
     STF_VISCOSITY_IMPLICIT = 0, /* backward Euler, conjugate gradients (Algorithm 2) */
     STF_VISCOSITY_EXPLICIT = 1, /* forward Euler (for comparison; limited by dt ~ h^2/nu) */
@@ -156,6 +165,7 @@ typedef struct stf_cy_def {
     int viscosity_form;    /* enum stf_viscosity_form (default morris) */
     int pressure_solver;   /* enum stf_pressure_solver (default jacobi) */
     int wall_pressure;     /* enum stf_wall_pressure (default own) */
+    int pressure_gradient; /* enum stf_pressure_gradient (default symmetric) */
 } stf_cy_def;
 
 /* What the Carreau-Yasuda solver did in the last step (zeros for the Clavet model). */

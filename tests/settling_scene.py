@@ -12,7 +12,7 @@
 # shrinks (2 spacings: -15.5% at dt 2 ms, -18.8% at 1 ms, against -5.0% and -8.9% without).
 # Optional key=value: nu, dt, eta, density, settle, depth, frame_rate, friction; z (m, the
 # sphere's centre height instead of one tank width under the surface); pressure_solver,
-# warm_start, wall_pressure (added to the carreau_yasuda block).
+# warm_start, wall_pressure, pressure_gradient (added to the carreau_yasuda block).
 import sys
 RS = float(sys.argv[1])
 lam = float(sys.argv[2]) if len(sys.argv) > 2 else 0.25
@@ -21,7 +21,7 @@ kv = dict(a.split("=", 1) for a in sys.argv[4:])
 a = 0.0075; s = a / RS
 n = round(2 * a / lam / s)            # particles across the tank
 W = n * s; H = float(kv.get('depth', 2)) * n * s; zc = float(kv.get('z', H - n * s))
-extra = "".join(f", {k}: {kv[k]}" for k in ("pressure_solver", "warm_start", "wall_pressure") if k in kv)
+extra = "".join(f", {k}: {kv[k]}" for k in ("pressure_solver", "warm_start", "wall_pressure", "pressure_gradient") if k in kv)
 nu = kv.get("nu", "1e-2")
 print(f"""name: settling_{RS:g}
 duration: {dur}

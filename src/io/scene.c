@@ -462,6 +462,7 @@ static const struct def_key {
      "effects.pressure.min_iterations"},
     {"pressure.solver", "effects.pressure.solver", "effects.pressure.mode"},
     {"pressure.wall_pressure", "effects.pressure.wall_pressure", "effects.pressure.mode"},
+    {"pressure.gradient", "effects.pressure.gradient", "effects.pressure.mode"},
     {"pressure.warm_start", "effects.pressure.warm_start", "effects.pressure.mode"},
     {"pressure.cg_tolerance", "effects.pressure.mode", NULL},
     {"pressure.max_cg_iterations", "effects.pressure.mode", NULL},
@@ -496,6 +497,7 @@ static const struct def_key {
     {"cy.viscosity_form", "effects.carreau_yasuda.viscosity_form", NULL},
     {"cy.pressure_solver", "effects.carreau_yasuda.pressure_solver", NULL},
     {"cy.wall_pressure", "effects.carreau_yasuda.wall_pressure", NULL},
+    {"cy.pressure_gradient", "effects.carreau_yasuda.pressure_gradient", NULL},
     {"cy.cg_tolerance", "effects.carreau_yasuda.cg_tolerance", NULL},
     {"cy.max_cg_iterations", "effects.carreau_yasuda.max_cg_iterations", NULL},
     {"cy.cfl", "effects.carreau_yasuda.cfl", NULL},
@@ -740,9 +742,11 @@ static int parse_carreau_yasuda(loader *L, const mapv *p)
     /* the names in the order of their enums (stf.h), so the index is the value */
     static const char *const psolvers[] = {"jacobi", "cg", NULL};
     static const char *const walls[] = {"own", "mirror", NULL};
+    static const char *const gradients[] = {"symmetric", "local_minimum", NULL};
     if (get_choice(L, p, "viscosity_solver", solvers, &c->viscosity_solver) < 0 ||
         get_choice(L, p, "pressure_solver", psolvers, &c->pressure_solver) < 0 ||
         get_choice(L, p, "wall_pressure", walls, &c->wall_pressure) < 0 ||
+        get_choice(L, p, "pressure_gradient", gradients, &c->pressure_gradient) < 0 ||
         get_choice(L, p, "viscosity_form", forms, &c->viscosity_form) < 0)
         return SCENE_BAD;
     return 0;
@@ -758,10 +762,11 @@ static int parse_pressure(loader *L, const mapv *p)
     static const char *const modes[] = {"relax", "projection", NULL}; /* enum order */
     static const char *const psolvers[] = {"jacobi", "cg", NULL};
     static const char *const walls[] = {"own", "mirror", NULL};
+    static const char *const gradients[] = {"symmetric", "local_minimum", NULL};
     static const char *const relax_only[] = {"k", "k_near", "rest_density", "rest", "tension",
                                              NULL};
     static const char *const packings[] = {"lattice", "liquid", NULL}; /* enum order */
-    static const char *const projection_only[] = {"eta", "solver", "wall_pressure",
+    static const char *const projection_only[] = {"eta", "solver", "wall_pressure", "gradient",
                                                   "min_iterations", "max_iterations",
                                                   "warm_start", NULL};
     if (get_choice(L, p, "mode", modes, &f->pressure_mode) < 0) return SCENE_BAD;
@@ -782,7 +787,8 @@ static int parse_pressure(loader *L, const mapv *p)
         get_count(L, p, "min_iterations", &c->min_pressure_iterations) < 0 ||
         get_count(L, p, "max_iterations", &c->max_pressure_iterations) < 0 ||
         get_choice(L, p, "solver", psolvers, &c->pressure_solver) < 0 ||
-        get_choice(L, p, "wall_pressure", walls, &c->wall_pressure) < 0)
+        get_choice(L, p, "wall_pressure", walls, &c->wall_pressure) < 0 ||
+        get_choice(L, p, "gradient", gradients, &c->pressure_gradient) < 0)
         return SCENE_BAD;
     return 0;
 }
@@ -823,7 +829,7 @@ static int parse_effect_params(loader *L, int e, const mapv *p)
 static const char *const gravity_keys[] = {"g", NULL};
 static const char *const viscosity_keys[] = {"sigma", "beta", NULL};
 static const char *const pressure_keys[] = {"k", "k_near", "rest_density", "rest", "tension", "mode",
-                                            "eta", "solver", "wall_pressure", "min_iterations",
+                                            "eta", "solver", "wall_pressure", "gradient", "min_iterations",
                                             "max_iterations", "warm_start", NULL};
 static const char *const springs_keys[] = {"k_min", "yield_ratio", "plasticity", "liquid_plasticity", "damping", "passive", NULL};
 static const char *const history_keys[] = {"q", "d", "memory", "k_hist", "mode", "reference_spacing", "terms", "k_onset", "velocity", "smoothing", NULL};
@@ -832,7 +838,7 @@ static const char *const cy_keys[] = {"mu0", "mu_inf", "K", "alpha", "n", "eta",
                                       "min_pressure_iterations", "max_pressure_iterations",
                                       "viscosity_solver", "cg_tolerance", "max_cg_iterations",
                                       "cfl", "dt_max", "warm_start", "relaxation", "viscosity_form",
-                                      "pressure_solver", "wall_pressure", NULL};
+                                      "pressure_solver", "wall_pressure", "pressure_gradient", NULL};
 
 static int parse_effects(loader *L, const mapv *top)
 {
