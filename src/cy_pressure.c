@@ -41,22 +41,28 @@ static void grad_at(const stf_fluid *f, const double *y, int i, double u[3])
 }
 
 /* The same with the pressures offset by the least of particle i's and its neighbours'
- * (pressure_gradient local_minimum, ours): u = sum_j m (y_j - y_min) grad W_ij + (mirror / 2)
- * (y_i - y_min) G_w,i, the wall's lattice carrying y_i as in the mirror (own: half of it, as
- * in the symmetric form). Every pair still pushes apart (y_j >= y_min), as in the moving
- * particle semi-implicit method's gradient (Koshizuka and Oka 1996), but a pressure that is
- * uniform over the neighbourhood pushes no particle: the symmetric form's
- * y (sum_j m grad W_ij + G_w,i) of an irregular neighbourhood is a restoring force
- * proportional to the absolute pressure, which resists every rearrangement of the packing,
- * as a granular medium's friction grows with its confining pressure. It is that friction
- * that held a settling sphere 10 cm deep in a thin oil (tests/README.md). The walls' reactions
- * (stf_cy_wall_reactions) keep the absolute pressure: a body feels the pressure on its
- * surface, the particles its gradient, so the two no longer exchange equal and opposite
- * impulses. Not linear in y: the Jacobi projection re-applies the total pressure. */
+ * (pressure_gradient local_minimum, ours): u = sum_j m (y_j - y_min) grad W_ij. Every pair
+ * still pushes apart (y_j >= y_min), as in the moving particle semi-implicit method's gradient
+ * (Koshizuka and Oka 1996), but a pressure that is uniform over the neighbourhood pushes no
+ * particle. In the symmetric form, y sum_j m grad W_ij of an irregular neighbourhood is a
+ * restoring force proportional to the absolute pressure: it resists every rearrangement of
+ * the packing, as a granular medium's friction grows with its confining pressure, and it held
+ * a sphere 10 cm deep in a thin oil (tests/README.md, "A denser sphere in a thin fluid").
+ * Within h of a wall (G_w,i not zero) the particle keeps the symmetric form: there the
+ * absolute pressure is what the wall and the particle exchange, equal and opposite, so a body
+ * feels its buoyancy as with the symmetric form (with the offset form at the walls too, the
+ * walls' reactions of the absolute pressure no longer matched where the particles sit: a held
+ * sphere of 2 spacings 10 cm deep felt 0.83 rho V g). Not linear in y: the Jacobi projection
+ * re-applies the whole pressure each iteration (project_local_minimum). */
 static void grad_min_at(const stf_fluid *f, const double *y, int i, double u[3])
 {
     const cy_state *c = f->cy;
-    double yi = y[i], lo = yi, d[3] = {0, 0, 0}, gs[3] = {0, 0, 0};
+    const double *G = c->gw + 3 * i;
+    if (G[0] != 0 || G[1] != 0 || G[2] != 0) {
+        grad_at(f, y, i, u);
+        return;
+    }
+    double lo = y[i], d[3] = {0, 0, 0}, gs[3] = {0, 0, 0};
     const cy_pair *pr = c->pair + c->off[i], *end = c->pair + c->off[i + 1];
     for (; pr < end; pr++) {
         double yj = y[pr->j];
@@ -64,8 +70,7 @@ static void grad_min_at(const stf_fluid *f, const double *y, int i, double u[3])
         d[0] += yj * pr->g[0], d[1] += yj * pr->g[1], d[2] += yj * pr->g[2];
         gs[0] += pr->g[0], gs[1] += pr->g[1], gs[2] += pr->g[2];
     }
-    double w = 0.5 * c->mirror * (yi - lo);
-    for (int a = 0; a < 3; a++) u[a] = f->mass * (d[a] - lo * gs[a]) + w * c->gw[3 * i + a];
+    for (int a = 0; a < 3; a++) u[a] = f->mass * (d[a] - lo * gs[a]);
 }
 
 static void grad_one(const stf_fluid *f, const double *y, double *u, int i)

@@ -507,10 +507,11 @@ static double hydrostatic_error(int solver, double warm, int wall, int gradient,
     double slope = (k * szp - sz * sp) / (k * szz - sz * sz), gerr = -slope / (rho0 * g) - 1;
     *floor_z = fn > 0 ? fz / fn : NAN;
     *floor_v = fn > 0 ? sqrt(fv / fn) : NAN;
-    printf("cy: column at rest, %s (warm_start %g, eta %g), wall_pressure %s: pressure gradient "
+    printf("cy: column at rest, %s (warm_start %g, eta %g), wall_pressure %s, %s force: pressure gradient "
            "%.0f Pa/m (rho0 g %.0f), %+.1f%%; floor layer %.0f Pa (rho0 g depth %.0f Pa) at %.3f "
            "spacings, rms speed %.2f mm/s; %.1f pressure iterations a step\n",
-           solver == STF_PRESSURE_CG ? "cg" : "jacobi", warm, eta, wall ? "mirror" : "own", -slope,
+           solver == STF_PRESSURE_CG ? "cg" : "jacobi", warm, eta, wall ? "mirror" : "own",
+           gradient == STF_PRESSURE_GRADIENT_LOCAL_MINIMUM ? "local-minimum" : "symmetric", -slope,
            rho0 * g, 100 * gerr, sum[0] / cnt[0], rho0 * g * (surface - 0.005), *floor_z,
            1e3 * *floor_v, iters / 50.0);
     free(v);
