@@ -137,6 +137,7 @@ static uint64_t periodic_flow_hash(int threads, int solver)
     d.cy.viscosity_solver = solver & 1;
     if (solver & 2) d.cy.pressure_solver = STF_PRESSURE_CG, d.cy.warm_start = 1;
     if (solver & 4) d.cy.wall_pressure = STF_WALL_PRESSURE_MIRROR;
+    if (solver & 8) d.cy.pressure_gradient = STF_PRESSURE_GRADIENT_LOCAL_MINIMUM;
     d.periodic[0] = 0.14, d.periodic[1] = 0.12;
     d.periodic_origin[0] = -0.07, d.periodic_origin[1] = -0.06;
     stf_fluid *f = make(&d);
@@ -170,15 +171,16 @@ static uint64_t periodic_flow_hash(int threads, int solver)
 static void test_threads_periodic(void)
 {
     /* 0, 1: implicit and explicit viscosity; 2: implicit, pressure_solver cg; 3: that with
-       wall_pressure mirror */
-    for (int solver = 0; solver < 4; solver++) {
+       wall_pressure mirror; 4: Jacobi, mirror, pressure_gradient local_minimum */
+    for (int solver = 0; solver < 5; solver++) {
         int sv = solver == 1 ? STF_VISCOSITY_EXPLICIT : STF_VISCOSITY_IMPLICIT;
-        if (solver >= 2) sv |= 2;
-        if (solver == 3) sv |= 4;
+        if (solver == 2 || solver == 3) sv |= 2;
+        if (solver >= 3) sv |= 4;
+        if (solver == 4) sv |= 8;
         uint64_t h1 = periodic_flow_hash(1, sv), h2 = periodic_flow_hash(2, sv),
                  h3 = periodic_flow_hash(3, sv);
         CHECK(h1 == h2 && h1 == h3 && h1 != 0, "periodic (%s): 1, 2, 3 threads differ: %llx %llx %llx",
-              solver == 3 ? "cg, mirror" : solver == 2 ? "pressure cg" : solver ? "explicit" : "implicit",
+              solver == 4 ? "local minimum" : solver == 3 ? "cg, mirror" : solver == 2 ? "pressure cg" : solver ? "explicit" : "implicit",
               (unsigned long long)h1, (unsigned long long)h2, (unsigned long long)h3);
     }
     stf_set_threads(1);
