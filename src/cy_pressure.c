@@ -53,7 +53,7 @@ static void grad_at(const stf_fluid *f, const double *y, int i, double u[3])
  * feels its buoyancy as with the symmetric form (with the offset form at the walls too, the
  * walls' reactions of the absolute pressure no longer matched where the particles sit: a held
  * sphere of 2 spacings 10 cm deep felt 0.83 rho V g). Not linear in y: the Jacobi projection
- * re-applies the whole pressure each iteration (project_local_minimum). */
+ * re-applies the whole pressure each iteration (apply_kappa). */
 static void grad_min_at(const stf_fluid *f, const double *y, int i, double u[3])
 {
     const cy_state *c = f->cy;
@@ -134,6 +134,33 @@ static double mean_error(const stf_fluid *f)
     return f->n > 0 ? sum / f->n / c->rho0 : 0;
 }
 
+/* Adds this iteration's kappa to the pressure and sets the velocities from it. Symmetric:
+ * the change of kappa alone, in place (pressure_dv_one). Local minimum: not linear in the
+ * pressure, so the whole pressure y = ktot / rho (in the scratch c->b) from the velocities
+ * before the projection (v0, in c->dv). */
+static void apply_kappa(stf_fluid *f, double dt, int local_minimum)
+{
+    cy_state *c = f->cy;
+    int n = f->n;
+    if (!local_minimum) {
+#pragma omp parallel for schedule(static)
+        for (int i = 0; i < n; i++) pressure_dv_one(f, i, dt);
+        return;
+    }
+    double *v0 = c->dv, *y = c->b;
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++) {
+        c->ktot[i] += c->kappa[i];
+        y[i] = c->ktot[i] * c->irho[i];
+    }
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++) {
+        double u[3];
+        grad_min_at(f, y, i, u);
+        for (int a = 0; a < 3; a++) f->v[3 * i + a] = v0[3 * i + a] - dt * u[a];
+    }
+}
+
 /* Algorithm 1: k_i from Eq. 21 for every particle (Jacobi), applied together, until the mean
  * compression is below eta and at least min_pressure_iterations were done. The paper starts
  * each step from zero pressure. With warm_start w > 0 the step first applies w times the
@@ -148,67 +175,18 @@ static double mean_error(const stf_fluid *f)
  * floor layer with omega = 1 and ran with omega = 0.5 and warm_start 0.5 (measured).
  * kappa, kr and ktot were set by the density pass (the warm start, or zero). Each iteration
  * is two neighbour passes: the velocity change, then rho* with the next k_i. */
-/* Algorithm 1 with the local-minimum gradient: as stf_cy_pressure_project, but each
- * iteration adds its k_i to the total and sets the velocities from the velocities before the
- * projection (v0, in the scratch c->dv) and the whole pressure (y = ktot / rho, in c->b). */
-static void apply_total(stf_fluid *f, const double *kappa, double dt)
-{
-    cy_state *c = f->cy;
-    int n = f->n;
-    double *v0 = c->dv, *y = c->b;
-#pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) {
-        c->ktot[i] += kappa[i];
-        y[i] = c->ktot[i] * c->irho[i];
-    }
-#pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) {
-        double u[3];
-        grad_min_at(f, y, i, u);
-        for (int a = 0; a < 3; a++) f->v[3 * i + a] = v0[3 * i + a] - dt * u[a];
-    }
-}
-
-static void project_local_minimum(stf_fluid *f, double dt, double w, double omega)
-{
-    cy_state *c = f->cy;
-    int n = f->n, iter = 0;
-    double err;
-    memcpy(c->dv, f->v, (size_t)n * 3 * sizeof *f->v);
-    if (w > 0) apply_total(f, c->kappa, dt); /* the warm start (kappa: the density pass's) */
-#pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) predict_kappa_one(f, f->v, i, dt, omega);
-    do {
-        apply_total(f, c->kappa, dt);
-#pragma omp parallel for schedule(static)
-        for (int i = 0; i < n; i++) predict_kappa_one(f, f->v, i, dt, omega);
-        err = mean_error(f);
-        iter++;
-    } while ((err > f->def.cy.eta || iter < f->def.cy.min_pressure_iterations) &&
-             iter < f->def.cy.max_pressure_iterations);
-    c->warm_n = n;
-    c->stats.pressure_iterations = iter;
-    c->stats.density_error = err;
-}
-
 void stf_cy_pressure_project(stf_fluid *f, double dt, double w)
 {
     cy_state *c = f->cy;
     int n = f->n, iter = 0;
     double err, omega = f->def.cy.relaxation > 0 ? f->def.cy.relaxation : 1.0;
-    if (f->def.cy.pressure_gradient == STF_PRESSURE_GRADIENT_LOCAL_MINIMUM) {
-        project_local_minimum(f, dt, w, omega);
-        return;
-    }
-    if (w > 0) {
-#pragma omp parallel for schedule(static)
-        for (int i = 0; i < n; i++) pressure_dv_one(f, i, dt);
-    }
+    int lm = f->def.cy.pressure_gradient == STF_PRESSURE_GRADIENT_LOCAL_MINIMUM;
+    if (lm) memcpy(c->dv, f->v, (size_t)n * 3 * sizeof *f->v);
+    if (w > 0) apply_kappa(f, dt, lm); /* the warm start (kappa: the density pass's) */
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) predict_kappa_one(f, f->v, i, dt, omega);
     do {
-#pragma omp parallel for schedule(static)
-        for (int i = 0; i < n; i++) pressure_dv_one(f, i, dt);
+        apply_kappa(f, dt, lm);
 #pragma omp parallel for schedule(static)
         for (int i = 0; i < n; i++) predict_kappa_one(f, f->v, i, dt, omega);
         err = mean_error(f);
