@@ -720,6 +720,12 @@ static int parse_history(loader *L, const mapv *h)
     return 0;
 }
 
+/* The projection's choices, shared by effects.carreau_yasuda and effects.pressure (mode
+ * projection): the names in the order of their enums (stf.h), so the index is the value. */
+static const char *const psolvers[] = {"jacobi", "cg", NULL};
+static const char *const walls[] = {"own", "mirror", NULL};
+static const char *const gradients[] = {"symmetric", "local_minimum", NULL};
+
 /* effects.carreau_yasuda: the second paper's model (needs fluid.model: carreau_yasuda). */
 static int parse_carreau_yasuda(loader *L, const mapv *p)
 {
@@ -739,10 +745,6 @@ static int parse_carreau_yasuda(loader *L, const mapv *p)
         get_count(L, p, "max_pressure_iterations", &c->max_pressure_iterations) < 0 ||
         get_count(L, p, "max_cg_iterations", &c->max_cg_iterations) < 0)
         return SCENE_BAD;
-    /* the names in the order of their enums (stf.h), so the index is the value */
-    static const char *const psolvers[] = {"jacobi", "cg", NULL};
-    static const char *const walls[] = {"own", "mirror", NULL};
-    static const char *const gradients[] = {"symmetric", "local_minimum", NULL};
     if (get_choice(L, p, "viscosity_solver", solvers, &c->viscosity_solver) < 0 ||
         get_choice(L, p, "pressure_solver", psolvers, &c->pressure_solver) < 0 ||
         get_choice(L, p, "wall_pressure", walls, &c->wall_pressure) < 0 ||
@@ -760,9 +762,6 @@ static int parse_pressure(loader *L, const mapv *p)
     stf_fluid_def *f = &L->s->fluid;
     stf_cy_def *c = &f->cy;
     static const char *const modes[] = {"relax", "projection", NULL}; /* enum order */
-    static const char *const psolvers[] = {"jacobi", "cg", NULL};
-    static const char *const walls[] = {"own", "mirror", NULL};
-    static const char *const gradients[] = {"symmetric", "local_minimum", NULL};
     static const char *const relax_only[] = {"k", "k_near", "rest_density", "rest", "tension",
                                              NULL};
     static const char *const packings[] = {"lattice", "liquid", NULL}; /* enum order */
