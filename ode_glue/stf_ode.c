@@ -47,6 +47,7 @@ struct stf_ode {
     /* per attachment, STF_ODE_PARTS rows of 3: the force by part (stf_ode_body_fluid_force_parts)
        of the last substep (N), and its impulse over the last stf_ode_step (N s) */
     double *part, *pimp;
+    int *ids;       /* scratch, cap: the colliders of one body's geoms (stabilise_light_body) */
     double step_dt; /* s, the last stf_ode_step's dt (0 before the first) */
 };
 
@@ -159,6 +160,7 @@ void stf_ode_destroy(stf_ode *c)
     if (!c) return;
     dJointGroupDestroy(c->contacts);
     free(c->att);
+    free(c->ids);
     free(c->force);
     free(c->torque);
     free(c->imp);
@@ -206,7 +208,9 @@ static int push(stf_ode *c, attachment a, char *err, size_t errlen)
         int cap = c->cap ? 2 * c->cap : 8;
         attachment *att = realloc(c->att, (size_t)cap * sizeof *att);
         if (att) c->att = att;
-        int ok = att != NULL;
+        int *ids = realloc(c->ids, (size_t)cap * sizeof *ids);
+        if (ids) c->ids = ids;
+        int ok = att != NULL && ids != NULL;
         for (int q = 0; q < 6; q++) {
             double *p = realloc(*arr[q], (size_t)cap * width[q] * sizeof *p);
             if (p) *arr[q] = p;
@@ -442,13 +446,26 @@ static int inverse_sym3(const double m[6], double inv[9])
  * velocity and a rotation about their centre (the fluid moves with the body as an added
  * mass does), so momentum and angular momentum are kept to round-off. A steady state
  * (floating, a terminal velocity) is unchanged; a transient is slower by (2 E + E) / (M + E).
- * Bodies with several geoms are left as they were. */
+ * A body of several geoms (k its first) is one body here: their volumes and bands add (where
+ * geoms overlap, the overlap counts twice: a larger E, more stabilisation), its band is every
+ * particle within it of any of them, F and T are the body's. */
 static void stabilise_light_body(stf_ode *c, int k, double dt, double F[3], double T[3])
 {
     const attachment *a = &c->att[k];
-    if (!(a->vol > 0) || !(a->vol_band > 0) || dBodyIsKinematic(a->body)) return;
-    for (int j = 0; j < c->n; j++)
-        if (j != k && c->att[j].body == a->body) return;
+    if (!a->body || dBodyIsKinematic(a->body)) return;
+    const dReal *com = dBodyGetPosition(a->body);
+    double X[3] = {com[0], com[1], com[2]}, vol = 0, vol_band = 0, far = 0;
+    int nids = 0;
+    for (int j = k; j < c->n; j++) {
+        const attachment *b = &c->att[j];
+        if (b->body != a->body) continue;
+        if (!(b->vol > 0) || !(b->vol_band > 0)) return; /* a geom without a volume */
+        vol += b->vol, vol_band += b->vol_band;
+        const dReal *p = dGeomGetPosition(b->geom);
+        double d[3] = {p[0] - X[0], p[1] - X[1], p[2] - X[2]};
+        far = fmax(far, b->reach + sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]));
+        c->ids[nids++] = b->collider;
+    }
     dMass m;
     dBodyGetMass(a->body, &m);
     double s = c->spacing, mp = stf_fluid_particle_mass(c->fluid), rho = mp / (s * s * s);
@@ -456,19 +473,17 @@ static void stabilise_light_body(stf_ode *c, int k, double dt, double F[3], doub
     double reach = sqrt(c->nu_implicit * dt), band = s;
     /* a body heavier than any wetting can ask for skips the pass over the particles: the
        band's fluid (at most 1.5 times its nominal mass) turns at most at the bounding radius */
-    double far = a->reach + s;
-    if (reach <= s && m.mass >= 2 * rho * a->vol &&
-        Ib >= 2 * (2.0 / 3.0) * 1.5 * rho * a->vol_band * far * far)
+    far += s;
+    if (reach <= s && m.mass >= 2 * rho * vol && Ib >= 2 * (2.0 / 3.0) * 1.5 * rho * vol_band * far * far)
         return;
-    const dReal *com = dBodyGetPosition(a->body);
-    double X[3] = {com[0], com[1], com[2]}, sum[3], sum2[6];
-    int wetted = stf_fluid_collider_band(c->fluid, a->collider, s, X, sum, sum2), count = wetted;
-    double wet = fmin(1.0, wetted * s * s * s / a->vol_band), E = rho * a->vol * wet;
+    double sum[3], sum2[6];
+    int wetted = stf_fluid_collider_band(c->fluid, c->ids, nids, s, X, sum, sum2), count = wetted;
+    double wet = fmin(1.0, wetted * s * s * s / vol_band), E = rho * vol * wet;
     /* a viscosity solved implicitly moves the fluid within L = sqrt(nu dt) of the surface with
        the body in the substep: E is at least that fluid's mass, and the band is L wide */
     if (reach > s) {
         band = reach;
-        count = stf_fluid_collider_band(c->fluid, a->collider, band, X, sum, sum2);
+        count = stf_fluid_collider_band(c->fluid, c->ids, nids, band, X, sum, sum2);
         E = fmax(E, count * mp);
     }
     if (count < 4) return;
@@ -507,7 +522,22 @@ static void stabilise_light_body(stf_ode *c, int k, double dt, double F[3], doub
     L[2] = H[2] - (cen[0] * D[1] - cen[1] * D[0]);
     for (int q = 0; q < 3; q++) w[q] = inv[3 * q] * L[0] + inv[3 * q + 1] * L[1] + inv[3 * q + 2] * L[2];
     double C[3] = {X[0] + cen[0], X[1] + cen[1], X[2] + cen[2]};
-    stf_fluid_collider_band_push(c->fluid, a->collider, band, C, dv, w);
+    stf_fluid_collider_band_push(c->fluid, c->ids, nids, band, C, dv, w);
+}
+
+/* The number of attachments on attachment k's body (1 for a fixed solid), and in *first
+ * whether k is the first of them. */
+static int body_geoms(const stf_ode *c, int k, int *first)
+{
+    int n = 0;
+    *first = 1;
+    if (!c->att[k].body) return 1;
+    for (int j = 0; j < c->n; j++)
+        if (c->att[j].body == c->att[k].body) {
+            n++;
+            if (j < k) *first = 0;
+        }
+    return n;
 }
 
 /* Gives body a's share of the fluid's reaction as force and torque over dt. */
@@ -544,7 +574,8 @@ static void apply_reaction(stf_ode *c, int k, double dt)
     tot[1] -= S[2] * u[0] - S[0] * u[2];
     tot[2] -= S[0] * u[1] - S[1] * u[0];
     for (int q = 0; q < 3; q++) F[q] = J[q] / dt, T[q] = tot[q] / dt;
-    stabilise_light_body(c, k, dt, F, T);
+    int first;
+    if (body_geoms(c, k, &first) == 1) stabilise_light_body(c, k, dt, F, T);
     double parts[STF_PARTS][3];
     stf_fluid_collider_impulse_parts(c->fluid, a->collider, parts);
     for (int p = 0; p < STF_PARTS; p++)
@@ -554,6 +585,39 @@ static void apply_reaction(stf_ode *c, int k, double dt)
         dBodyEnable(a->body); /* a body the fluid pushes must not fall asleep */
         dBodyAddForce(a->body, F[0], F[1], F[2]);
         dBodyAddTorque(a->body, T[0], T[1], T[2]);
+    }
+}
+
+/* The added-mass stabilisation of the bodies of several geoms, on the body's force and
+ * torque (the sums over its geoms): what it holds back acts on the body as one more force
+ * and torque, booked as its first geom's added-mass part. */
+static void stabilise_compound_bodies(stf_ode *c, double dt)
+{
+    for (int k = 0; k < c->n; k++) {
+        int first;
+        if (body_geoms(c, k, &first) < 2 || !first) continue;
+        dBodyID b = c->att[k].body;
+        double F[3] = {0, 0, 0}, T[3] = {0, 0, 0}, F0[3], T0[3], dF[3], dT[3];
+        for (int j = k; j < c->n; j++)
+            for (int q = 0; q < 3 && c->att[j].body == b; q++)
+                F[q] += c->force[3 * j + q], T[q] += c->torque[3 * j + q];
+        memcpy(F0, F, sizeof F0);
+        memcpy(T0, T, sizeof T0);
+        stabilise_light_body(c, k, dt, F, T);
+        int any = 0;
+        for (int q = 0; q < 3; q++) {
+            dF[q] = F[q] - F0[q], dT[q] = T[q] - T0[q];
+            any |= dF[q] != 0 || dT[q] != 0;
+        }
+        if (!any) continue;
+        double *P = c->part + 3 * STF_ODE_PARTS * k + 3 * STF_ODE_PART_ADDED_MASS;
+        for (int q = 0; q < 3; q++) {
+            c->force[3 * k + q] += dF[q], c->torque[3 * k + q] += dT[q];
+            P[q] += dF[q];
+        }
+        dBodyEnable(b);
+        dBodyAddForce(b, dF[0], dF[1], dF[2]);
+        dBodyAddTorque(b, dT[0], dT[1], dT[2]);
     }
 }
 
@@ -636,6 +700,7 @@ int stf_ode_substep(stf_ode *c, double dt)
         return -1;
     }
     for (int k = 0; k < c->n; k++) apply_reaction(c, k, dt);
+    stabilise_compound_bodies(c, dt);
     move_bodies(c, dt);
     if (c->collide) {
         c->stats.collide_calls++;

@@ -554,24 +554,27 @@ void stf_fluid_collider_shift(const stf_fluid *f, int id, double shift[3])
     memcpy(shift, f->colliders[id].shift, sizeof f->colliders[id].shift);
 }
 
-/* the particles within band outside collider c */
-static int in_band(const collider *c, const double *x, double band)
+/* the particles within band outside any of the colliders ids */
+static int in_band(const stf_fluid *f, const int *ids, int nids, const double *x, double band)
 {
     double nrm[3];
-    return stf_collider_near(c, x, band) && stf_collider_sdf(c, x, nrm) < band;
+    for (int k = 0; k < nids; k++) {
+        const collider *c = &f->colliders[ids[k]];
+        if (stf_collider_near(c, x, band) && stf_collider_sdf(c, x, nrm) < band) return 1;
+    }
+    return 0;
 }
 
-int stf_fluid_collider_band(const stf_fluid *f, int id, double band, const double origin[3],
-                            double sum[3], double sum2[6])
+int stf_fluid_collider_band(const stf_fluid *f, const int *ids, int nids, double band,
+                            const double origin[3], double sum[3], double sum2[6])
 {
-    const collider *c = &f->colliders[id];
     int count = 0;
     for (int a = 0; a < 3; a++) sum[a] = 0;
     for (int a = 0; a < 6; a++) sum2[a] = 0;
     /* serial, in particle order: the sums do not depend on the thread count */
     for (int i = 0; i < f->n; i++) {
         const double *x = f->x + 3 * i;
-        if (!in_band(c, x, band)) continue;
+        if (!in_band(f, ids, nids, x, band)) continue;
         double r[3] = {x[0] - origin[0], x[1] - origin[1], x[2] - origin[2]};
         count++;
         for (int a = 0; a < 3; a++) sum[a] += r[a];
@@ -581,15 +584,14 @@ int stf_fluid_collider_band(const stf_fluid *f, int id, double band, const doubl
     return count;
 }
 
-void stf_fluid_collider_band_push(stf_fluid *f, int id, double band, const double origin[3],
-                                  const double dv[3], const double w[3])
+void stf_fluid_collider_band_push(stf_fluid *f, const int *ids, int nids, double band,
+                                  const double origin[3], const double dv[3], const double w[3])
 {
-    const collider *c = &f->colliders[id];
     int n = f->n;
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) {
         const double *x = f->x + 3 * i;
-        if (!in_band(c, x, band)) continue;
+        if (!in_band(f, ids, nids, x, band)) continue;
         double r[3] = {x[0] - origin[0], x[1] - origin[1], x[2] - origin[2]};
         double *v = f->v + 3 * i;
         v[0] += dv[0] + w[1] * r[2] - w[2] * r[1];

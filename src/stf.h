@@ -398,14 +398,16 @@ STF_API void stf_fluid_collider_impulse_parts(const stf_fluid *f, int id, double
  * of fluid and body where it was (stf_ode does); the moment above then keeps the angular
  * momentum, taking the particles' velocities relative to the collider's velocity. */
 STF_API void stf_fluid_collider_shift(const stf_fluid *f, int id, double shift[3]);
-/* The particles within band (m) outside collider id's surface: their number, the sum of
- * their positions relative to origin (m) and of the products of those (xx yy zz xy xz yz,
- * m^2), summed in particle order. */
-STF_API int stf_fluid_collider_band(const stf_fluid *f, int id, double band, const double origin[3],
-                                    double sum[3], double sum2[6]);
+/* The particles within band (m) outside the surface of any of the nids colliders ids (the
+ * geoms of one body; each particle counted once): their number, the sum of their positions
+ * relative to origin (m) and of the products of those (xx yy zz xy xz yz, m^2), summed in
+ * particle order. */
+STF_API int stf_fluid_collider_band(const stf_fluid *f, const int *ids, int nids, double band,
+                                    const double origin[3], double sum[3], double sum2[6]);
 /* Changes the velocity of each of those particles at x by dv + w × (x - origin) (m/s). */
-STF_API void stf_fluid_collider_band_push(stf_fluid *f, int id, double band, const double origin[3],
-                                          const double dv[3], const double w[3]);
+STF_API void stf_fluid_collider_band_push(stf_fluid *f, const int *ids, int nids, double band,
+                                          const double origin[3], const double dv[3],
+                                          const double w[3]);
 /* Signed distance (m) from x to the collider's surface (> 0 outside). */
 STF_API double stf_fluid_collider_distance(const stf_fluid *f, int id, const double x[3]);
 
