@@ -598,9 +598,10 @@ static void stabilise_compound_bodies(stf_ode *c, double dt)
         if (body_geoms(c, k, &first) < 2 || !first) continue;
         dBodyID b = c->att[k].body;
         double F[3] = {0, 0, 0}, T[3] = {0, 0, 0}, F0[3], T0[3], dF[3], dT[3];
-        for (int j = k; j < c->n; j++)
-            for (int q = 0; q < 3 && c->att[j].body == b; q++)
-                F[q] += c->force[3 * j + q], T[q] += c->torque[3 * j + q];
+        for (int j = k; j < c->n; j++) {
+            if (c->att[j].body != b) continue;
+            for (int q = 0; q < 3; q++) F[q] += c->force[3 * j + q], T[q] += c->torque[3 * j + q];
+        }
         memcpy(F0, F, sizeof F0);
         memcpy(T0, T, sizeof T0);
         stabilise_light_body(c, k, dt, F, T);
