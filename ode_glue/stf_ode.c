@@ -452,7 +452,6 @@ static int inverse_sym3(const double m[6], double inv[9])
 static void stabilise_light_body(stf_ode *c, int k, double dt, double F[3], double T[3])
 {
     const attachment *a = &c->att[k];
-    if (!a->body || dBodyIsKinematic(a->body)) return;
     const dReal *com = dBodyGetPosition(a->body);
     double X[3] = {com[0], com[1], com[2]}, vol = 0, vol_band = 0, far = 0;
     int nids = 0;
@@ -525,19 +524,14 @@ static void stabilise_light_body(stf_ode *c, int k, double dt, double F[3], doub
     stf_fluid_collider_band_push(c->fluid, c->ids, nids, band, C, dv, w);
 }
 
-/* The number of attachments on attachment k's body (1 for a fixed solid), and in *first
- * whether k is the first of them. */
-static int body_geoms(const stf_ode *c, int k, int *first)
+/* 1 when attachment k is the first of its body's, and that body is dynamic. */
+static int first_of_body(const stf_ode *c, int k)
 {
-    int n = 0;
-    *first = 1;
-    if (!c->att[k].body) return 1;
-    for (int j = 0; j < c->n; j++)
-        if (c->att[j].body == c->att[k].body) {
-            n++;
-            if (j < k) *first = 0;
-        }
-    return n;
+    dBodyID b = c->att[k].body;
+    if (!b || dBodyIsKinematic(b)) return 0;
+    for (int j = 0; j < k; j++)
+        if (c->att[j].body == b) return 0;
+    return 1;
 }
 
 /* Gives body a's share of the fluid's reaction as force and torque over dt. */
@@ -574,13 +568,10 @@ static void apply_reaction(stf_ode *c, int k, double dt)
     tot[1] -= S[2] * u[0] - S[0] * u[2];
     tot[2] -= S[0] * u[1] - S[1] * u[0];
     for (int q = 0; q < 3; q++) F[q] = J[q] / dt, T[q] = tot[q] / dt;
-    int first;
-    if (body_geoms(c, k, &first) == 1) stabilise_light_body(c, k, dt, F, T);
     double parts[STF_PARTS][3];
     stf_fluid_collider_impulse_parts(c->fluid, a->collider, parts);
     for (int p = 0; p < STF_PARTS; p++)
         for (int q = 0; q < 3; q++) P[3 * p + q] = parts[p][q] / dt;
-    for (int q = 0; q < 3; q++) P[3 * STF_ODE_PART_ADDED_MASS + q] = F[q] - J[q] / dt;
     if (J[0] != 0 || J[1] != 0 || J[2] != 0 || S[0] != 0 || S[1] != 0 || S[2] != 0) {
         dBodyEnable(a->body); /* a body the fluid pushes must not fall asleep */
         dBodyAddForce(a->body, F[0], F[1], F[2]);
@@ -588,14 +579,13 @@ static void apply_reaction(stf_ode *c, int k, double dt)
     }
 }
 
-/* The added-mass stabilisation of the bodies of several geoms, on the body's force and
- * torque (the sums over its geoms): what it holds back acts on the body as one more force
- * and torque, booked as its first geom's added-mass part. */
-static void stabilise_compound_bodies(stf_ode *c, double dt)
+/* The added-mass stabilisation of each dynamic body, on its force and torque (the sums over
+ * its geoms, apply_reaction's): what it holds back acts on the body as one more force and
+ * torque, booked as its first geom's added-mass part. */
+static void stabilise_bodies(stf_ode *c, double dt)
 {
     for (int k = 0; k < c->n; k++) {
-        int first;
-        if (body_geoms(c, k, &first) < 2 || !first) continue;
+        if (!first_of_body(c, k)) continue;
         dBodyID b = c->att[k].body;
         double F[3] = {0, 0, 0}, T[3] = {0, 0, 0}, F0[3], T0[3], dF[3], dT[3];
         for (int j = k; j < c->n; j++) {
@@ -614,7 +604,7 @@ static void stabilise_compound_bodies(stf_ode *c, double dt)
         double *P = c->part + 3 * STF_ODE_PARTS * k + 3 * STF_ODE_PART_ADDED_MASS;
         for (int q = 0; q < 3; q++) {
             c->force[3 * k + q] += dF[q], c->torque[3 * k + q] += dT[q];
-            P[q] += dF[q];
+            P[q] = dF[q];
         }
         dBodyEnable(b);
         dBodyAddForce(b, dF[0], dF[1], dF[2]);
@@ -634,10 +624,8 @@ static void stabilise_compound_bodies(stf_ode *c, double dt)
 static void move_bodies(stf_ode *c, double dt)
 {
     for (int k = 0; k < c->n; k++) {
+        if (!first_of_body(c, k)) continue; /* once per dynamic body, with all its colliders */
         dBodyID b = c->att[k].body;
-        int first = b && !dBodyIsKinematic(b);
-        for (int j = 0; j < k && first; j++) first = c->att[j].body != b;
-        if (!first) continue; /* once per dynamic body, with all its colliders */
         double S[3] = {0, 0, 0}, J[3] = {0, 0, 0};
         for (int j = k; j < c->n; j++) {
             if (c->att[j].body != b) continue;
@@ -645,8 +633,7 @@ static void move_bodies(stf_ode *c, double dt)
             stf_fluid_collider_shift(c->fluid, c->att[j].collider, s);
             stf_fluid_collider_impulse(c->fluid, c->att[j].collider, Jj, Mj);
             /* the impulse the body gets: the fluid's, less what the added-mass stabilisation
-               held back and handed to the particles (its part is F - J / dt, 0 when it did
-               not act) */
+               held back and handed to the particles (its part, 0 when it did not act) */
             const double *P = c->part + 3 * STF_ODE_PARTS * j + 3 * STF_ODE_PART_ADDED_MASS;
             for (int q = 0; q < 3; q++) S[q] += s[q], J[q] += Jj[q] + dt * P[q];
         }
@@ -708,7 +695,7 @@ int stf_ode_substep(stf_ode *c, double dt)
         return -1;
     }
     for (int k = 0; k < c->n; k++) apply_reaction(c, k, dt);
-    stabilise_compound_bodies(c, dt);
+    stabilise_bodies(c, dt);
     move_bodies(c, dt);
     if (c->collide) {
         c->stats.collide_calls++;

@@ -685,8 +685,8 @@ static void test_attach_once(void)
  * from two geoms), held at rest in it while the fluid settles, then released. The added-mass
  * stabilisation (stf_ode.c) takes the body as a whole: its force stays under twice its
  * buoyancy, it rises (in the thinner fluid), and it does not spin up. Before, the
- * stabilisation skipped bodies of several geoms: the same dumbbell felt 82 N and 633 N (2,400
- * and 19,000 times its buoyancy), spun at 25,000 rad/s and left the tank within 0.3 s. What
+ * stabilisation skipped bodies of several geoms: the same dumbbell felt 203 N and 479 N (6,000
+ * and 14,000 times its buoyancy), spun at 69,000-84,000 rad/s and left the tank within 0.3 s. What
  * it holds back goes to the fluid, momentum kept to round-off (test_momentum). */
 static void compound_case(double nu)
 {
@@ -709,21 +709,7 @@ static void compound_case(double nu)
     CHECK(stf_ode_attach_container(c, 0, (double[3]){0, 0, 0}, (double[3]){0.07, 0.07, 0.16}, 0.01,
                                    NULL, err, sizeof err) == 0, "%s", err);
     double V = 2 * 4.0 / 3.0 * M_PI * r * r * r, M = 0.25 * rho * V;
-    dBodyID b = dBodyCreate(w);
-    dMass m, m2;
-    dMassSetSphereTotal(&m, M / 2, r);
-    dMassTranslate(&m, -off, 0, 0);
-    dMassSetSphereTotal(&m2, M / 2, r);
-    dMassTranslate(&m2, off, 0, 0);
-    dMassAdd(&m, &m2);
-    dMassTranslate(&m, -m.c[0], -m.c[1], -m.c[2]); /* ODE: the centre of mass at the body's origin */
-    dBodySetMass(b, &m);
-    dBodySetPosition(b, 0, 0, 0.04);
-    for (int k = -1; k <= 1; k += 2) {
-        dGeomID gm = dCreateSphere(sp, r);
-        dGeomSetBody(gm, b);
-        dGeomSetOffsetPosition(gm, k * off, 0, 0);
-    }
+    dBodyID b = make_dumbbell(w, sp, r, 2 * off, M, (double[3]){0, 0, 0.04});
     CHECK(stf_ode_attach_body(c, b, NULL, err, sizeof err) == 0, "%s", err);
     stf_ode_remove_overlaps(c);
     CHECK(stf_ode_settle(c, 0.001, 300, 0.3 / 8) == 0, "settle: %s", stf_ode_failure(c));
