@@ -192,6 +192,12 @@ int stf_fluid_check_def(const stf_fluid_def *d, char *err, size_t errlen, const 
         BAD("rest_density", "rest_density: must be >= 0 (got %g)", d->rest_density);
     if (d->rest_packing != STF_REST_LATTICE && d->rest_packing != STF_REST_LIQUID)
         BAD("rest_packing", "rest: must be lattice or liquid (got %d)", d->rest_packing);
+    if (d->relax_wall != STF_RELAX_WALL_MIRROR && d->relax_wall != STF_RELAX_WALL_GHOST)
+        BAD("relax_wall", "wall: must be mirror or ghost (got %d)", d->relax_wall);
+    if (d->relax_wall == STF_RELAX_WALL_GHOST &&
+        (d->model != STF_MODEL_CLAVET_STF || d->pressure_mode != STF_PRESSURE_RELAX))
+        BAD("relax_wall", "wall: ghost is a wall of the relaxation (mode relax of the "
+                          "clavet_stf model)");
     if (d->rest_packing == STF_REST_LIQUID && d->rest_density > 0)
         BAD("rest_packing", "rest: liquid sets the rest density; give rest_density or rest, not "
                             "both");
@@ -1005,7 +1011,7 @@ int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
         "stiffnesses below are scaled to spacing)\nh: %.9g  # m\ndensity: %.9g  # kg/m^3\n"
         "particle_mass: %.9g  # kg\njitter: %.9g  # spacings\ngravity: [%.9g, %.9g, %.9g]  # m/s^2\n"
         "sigma: %.9g  # 1/s\nbeta: %.9g  # 1/m\nk: %.9g  # m/s^2\nk_near: %.9g  # m/s^2\n"
-        "tension: %s\nrest: %s\nrest_density: %.9g  # kernel sum\nrest_near_density: %.9g  # kernel sum\n"
+        "tension: %s\nrest: %s\nwall: %s\nrest_density: %.9g  # kernel sum\nrest_near_density: %.9g  # kernel sum\n"
         "k_min: %.9g  # 1/s^2\nyield_ratio: %.9g\nplasticity: %.9g  # 1/s\nliquid_plasticity: %.9g  # 1/s\n"
         "relaxation: %s\niterations: %d\nspring_damping: %.9g  # s\nspring_passive: %s\nq: %.9g\n"
         "history_mode: %s\nhistory_velocity: %s\nhistory_smoothing: %.9g  # m (0: the kernel's neighbours)\nhistory_steps: %d  # at the first step (with memory: memory / dt)\n"
@@ -1014,7 +1020,8 @@ int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
         "stick: %.9g  # 1/s\n",
         effects, d->spacing, d->material_spacing, f->h, d->density, f->mass, d->jitter, d->gravity[0], d->gravity[1],
         d->gravity[2], d->sigma, d->beta, d->k, d->k_near, d->tension ? "true" : "false",
-        d->rest_packing == STF_REST_LIQUID ? "liquid" : "lattice", f->rest_density, f->rest_near, d->k_min, d->yield_ratio, d->plasticity,
+        d->rest_packing == STF_REST_LIQUID ? "liquid" : "lattice",
+        d->relax_wall == STF_RELAX_WALL_GHOST ? "ghost" : "mirror", f->rest_density, f->rest_near, d->k_min, d->yield_ratio, d->plasticity,
         d->liquid_plasticity >= 0 ? d->liquid_plasticity : d->plasticity,
         d->relaxation == STF_RELAX_GAUSS_SEIDEL ? "gauss_seidel" : "jacobi", d->iterations,
         d->spring_damping, d->spring_passive ? "true" : "false", d->q,

@@ -3,14 +3,24 @@
  * Densities are kernel sums rho_i = sum (1-r/h)^2 and rho_near_i = sum (1-r/h)^3 over the
  * neighbours; P = k (rho - rho0), P_near = k_near rho_near. Clavet moves i and j apart by
  * D/2 each while visiting i; visiting j later adds j's own D. Gathering both halves at once,
- * particle i moves by -dt^2/2 ((P_i+P_j)(1-q) + (Pn_i+Pn_j)(1-q)^2) along r_ij/r.
+ * particle i moves by -dt^2/2 ((P_i+P_j)(1-q) + (Pn_i+Pn_j)(1-q)^2) along r_ij/r: the
+ * gradient of one energy, E = sum_i h [k (rho_i - rho0)^2 / 4 + k_near rho_near,i^2 / 6],
+ * times -dt^2/2.
  *
  * Walls: a particle near a solid misses the neighbours the solid takes the place of, so its
  * density is too low, and it is pulled towards the wall by negative pressure; a floating
  * body then displaces more fluid than its volume and Archimedes fails. Each collider
- * therefore counts as a half-space filled with lattice particles that carry the particle's
- * own pressure (a mirror). Their sums depend only on the distance to the surface and are
- * tabulated once; the push they give is an impulse the collider receives back. */
+ * therefore counts as a half-space filled with lattice sites, whose sums depend only on the
+ * distance d to the surface and are tabulated once; the push they give is an impulse the
+ * collider receives back. Two sets of sites (stf.h, enum stf_relax_wall):
+ *  - mirror: sites fixed at d + s/2, d + 3s/2, ... (normal to the wall) carrying the
+ *    particle's own pressure plus the hydrostatic difference. Their push is twice what the
+ *    particle's own density term gives, so it is not the gradient of E: a closed box under
+ *    pressure heats up (src/README.md, "The relaxation's walls").
+ *  - ghost: the sites are the mirror image of the particle's own lattice, at 2d, 2d + s, ...
+ *    (the first one the particle's own image), so they move twice as fast as the particle
+ *    towards the wall. The wall term of rho_i then has twice the slope, and the push
+ *    dt^2 (P_i F1 + Pn_i F2), the same form as the mirror's, is exactly -dt^2/2 grad E. */
 #include <math.h>
 #include <stdint.h>
 #include <string.h>
@@ -22,23 +32,25 @@ enum { W_RHO, W_RHO_NEAR, W_F1, W_F2, W_A, W_B, W_COUNT };
 void stf_pressure_wall_table(stf_fluid *f)
 {
     double s = f->def.spacing, h = f->h;
-    int m = (int)ceil(h / s) + 1;
+    int m = (int)ceil(h / s) + 1, ghost = f->def.relax_wall == STF_RELAX_WALL_GHOST;
     for (int b = 0; b <= WALL_BINS; b++) {
         double d = h * b / WALL_BINS, sum[W_COUNT] = {0, 0, 0, 0, 0, 0};
-        /* virtual sites: the mirror of the fluid lattice, first layer s/2 inside the solid */
+        /* virtual sites: a lattice filling the solid, first layer s/2 inside it (mirror), or
+           the particle's own lattice reflected in the wall (ghost) */
         for (int layer = 0; layer <= m; layer++)
             for (int a = -m; a <= m; a++)
                 for (int c = -m; c <= m; c++) {
-                    double dz = d + s * (0.5 + layer), dx = a * s, dy = c * s;
-                    double r = sqrt(dx * dx + dy * dy + dz * dz);
+                    double dz = ghost ? 2 * d + s * layer : d + s * (0.5 + layer);
+                    double dx = a * s, dy = c * s, r = sqrt(dx * dx + dy * dy + dz * dz);
                     if (r >= h) continue;
-                    double w = 1 - r / h, cosn = dz / r;
+                    /* r = 0: the particle's own image at the wall, the push along n */
+                    double w = 1 - r / h, cosn = r > 0 ? dz / r : 1.0;
                     sum[W_RHO] += w * w;
                     sum[W_RHO_NEAR] += w * w * w;
                     sum[W_F1] += w * cosn;
                     sum[W_F2] += w * w * cosn;
-                    sum[W_A] += w * dz * dz / r;
-                    sum[W_B] += w * dx * dx / r;
+                    sum[W_A] += r > 0 ? w * dz * dz / r : 0.0;
+                    sum[W_B] += r > 0 ? w * dx * dx / r : 0.0;
                 }
         for (int k = 0; k < W_COUNT; k++) f->wall_table[k][b] = sum[k];
     }
@@ -52,7 +64,8 @@ void stf_pressure_wall_table(stf_fluid *f)
                 double r = s * sqrt((double)(a * a + b * b + c * c));
                 if (r > 0 && r < h) M += (1 - r / h) * (c * s) * (c * s) / r;
             }
-    int grav = (f->def.effects & STF_EFFECT_GRAVITY) != 0;
+    /* The ghost's sites carry no pressure of their own: nothing to correct */
+    int grav = (f->def.effects & STF_EFFECT_GRAVITY) != 0 && !ghost;
     for (int a = 0; a < 3; a++) f->grad_p[a] = grav ? 2.0 * f->def.gravity[a] / M : 0.0;
 }
 

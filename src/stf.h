@@ -94,6 +94,23 @@ enum stf_rest_packing {
                              at the same number density, so the fluid is at its density */
 };
 
+/* The walls of Clavet's relaxation (stf_fluid_def.relax_wall, scene key effects.pressure.wall).
+ * A particle near a solid misses the neighbours the solid takes the place of; each collider
+ * counts as a half-space of lattice sites, within h of the particle (src/pressure.c). */
+enum stf_relax_wall {
+    STF_RELAX_WALL_MIRROR = 0, /* ours: sites fixed half a spacing and more inside the solid,
+                                  carrying the particle's pressure plus the hydrostatic
+                                  difference; twice the push the particle's own density gives,
+                                  so not the gradient of an energy: each pass of a particle
+                                  at a wall can do net work on it (a pool's particle-scale
+                                  motion is kept up by it) */
+    STF_RELAX_WALL_GHOST = 1,  /* ours: the sites are the mirror image of the particle's own
+                                  lattice (2d + l s from it, the particle itself the first):
+                                  the wall enters through the particle's density only, and its
+                                  push, of the same strength, is the gradient of Clavet's energy
+                                  (src/README.md, "The relaxation's walls") */
+};
+
 /* The kernel sum of the settled liquid over the cubic lattice's at the same number density, for
  * Clavet's kernel (1 - r/h)^2 at h = 2 spacings (measured: src/README.md, "The rest density of
  * the liquid"). */
@@ -225,6 +242,7 @@ typedef struct stf_fluid_def {
                               0 means the value of the initial cubic lattice */
     int rest_packing;      /* enum stf_rest_packing (default lattice): the packing whose kernel
                               sum is the rest density when rest_density is 0 */
+    int relax_wall;        /* enum stf_relax_wall (default mirror): the relaxation's walls */
     int tension;           /* 1: Clavet's pressure as written, negative below rest density
                               (cohesion, surface tension); 0: pressure and near-pressure only
                               push, both measured from the rest lattice (no tension) */

@@ -455,6 +455,7 @@ static const struct def_key {
     {"k_near", "effects.pressure.k_near", NULL},
     {"rest_density", "effects.pressure.rest_density", NULL},
     {"rest_packing", "effects.pressure.rest", NULL},
+    {"relax_wall", "effects.pressure.wall", NULL},
     {"pressure_mode", "effects.pressure.mode", NULL},
     {"pressure.eta", "effects.pressure.eta", "effects.pressure.mode"},
     {"pressure.min_iterations", "effects.pressure.min_iterations", "effects.pressure.mode"},
@@ -763,7 +764,8 @@ static int parse_pressure(loader *L, const mapv *p)
     stf_cy_def *c = &f->cy;
     static const char *const modes[] = {"relax", "projection", NULL}; /* enum order */
     static const char *const relax_only[] = {"k", "k_near", "rest_density", "rest", "tension",
-                                             NULL};
+                                             "wall", NULL};
+    static const char *const relax_walls[] = {"mirror", "ghost", NULL}; /* enum order */
     static const char *const packings[] = {"lattice", "liquid", NULL}; /* enum order */
     static const char *const projection_only[] = {"eta", "solver", "wall_pressure", "gradient",
                                                   "min_iterations", "max_iterations",
@@ -781,6 +783,7 @@ static int parse_pressure(loader *L, const mapv *p)
         get_bool(L, p, "tension", &f->tension) < 0 ||
         get_num(L, p, "rest_density", R_ANY, &f->rest_density) < 0 ||
         get_choice(L, p, "rest", packings, &f->rest_packing) < 0 ||
+        get_choice(L, p, "wall", relax_walls, &f->relax_wall) < 0 ||
         get_num(L, p, "eta", R_ANY, &c->eta) < 0 ||
         get_num(L, p, "warm_start", R_ANY, &c->warm_start) < 0 ||
         get_count(L, p, "min_iterations", &c->min_pressure_iterations) < 0 ||
@@ -827,7 +830,7 @@ static int parse_effect_params(loader *L, int e, const mapv *p)
 
 static const char *const gravity_keys[] = {"g", NULL};
 static const char *const viscosity_keys[] = {"sigma", "beta", NULL};
-static const char *const pressure_keys[] = {"k", "k_near", "rest_density", "rest", "tension", "mode",
+static const char *const pressure_keys[] = {"k", "k_near", "rest_density", "rest", "tension", "wall", "mode",
                                             "eta", "solver", "wall_pressure", "gradient", "min_iterations",
                                             "max_iterations", "warm_start", NULL};
 static const char *const springs_keys[] = {"k_min", "yield_ratio", "plasticity", "liquid_plasticity", "damping", "passive", NULL};
