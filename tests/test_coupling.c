@@ -471,7 +471,9 @@ static void total_angmom(const stf_fluid *f, dBodyID b, double L[3], double *sca
               sqrt(Iw[0] * Iw[0] + Iw[1] * Iw[1] + Iw[2] * Iw[2]);
 }
 
-enum blob { DUST, SHEET, BLOB };
+enum blob { DUST, SHEET, THIN_SHEET, BLOB };
+/* the body: a heavy sphere, a heavy cube, a light dumbbell, a light sphere, a light cube */
+enum { HEAVY_SPHERE, HEAVY_CUBE, LIGHT_DUMBBELL, LIGHT_SPHERE, LIGHT_CUBE };
 
 /* Gravity off, no walls: a sphere (radius 2 cm) or a turned cube (4 cm), 0.3 kg at 2 m/s,
  * hits fluid 4 cm off its centre line, so the body spins and the fluid swirls. Returns
@@ -483,8 +485,13 @@ enum blob { DUST, SHEET, BLOB };
  *          to keep the dust's particle mass: the particles never come within h of each
  *          other, so a fluid's pairs never act, only the walls (mirror particles, wall
  *          viscosity) and the collisions.
+ *   THIN_SHEET: the same at d.spacing = h = 1 mm, for light bodies: a light body is thrown
+ *          about and presses the sheet's particles together (to 3.3-4 mm apart behind a
+ *          sphere, 0.8 mm at a cube's corner), and once two come within h the fluid's own
+ *          pair stages act, which do not keep angular momentum (the blob's cases below).
+ *          At 1 mm they stay 6 mm apart or more.
  *   BLOB:  a 10 cm cube of fluid at rest on the lattice (d.spacing) with all of its stages. */
-static double angmom_case(const char *what, stf_fluid_def d, int box, enum blob kind,
+static double angmom_case(const char *what, stf_fluid_def d, int body, enum blob kind,
                           const stf_ode_attach_def *ad, int steps)
 {
     dWorldID w = dWorldCreate();
@@ -492,6 +499,7 @@ static double angmom_case(const char *what, stf_fluid_def d, int box, enum blob 
     dWorldSetGravity(w, 0, 0, 0);
     const double half = 0.05;
     if (kind == SHEET) d.spacing = 0.004, d.h = 0.004, d.density *= 2.5 * 2.5 * 2.5;
+    if (kind == THIN_SHEET) d.spacing = 0.001, d.h = 0.001, d.density *= 10 * 10 * 10;
     char err[256];
     stf_fluid *f = NULL;
     if (stf_fluid_create(&d, &f, err, sizeof err) != 0) {
@@ -503,7 +511,7 @@ static double angmom_case(const char *what, stf_fluid_def d, int box, enum blob 
                             (double[3]){0, 0, 0});
     } else {
         const double pitch = 0.01, swirl = 20;
-        int m = 10, mx = kind == SHEET ? 1 : m;
+        int m = 10, mx = kind == SHEET || kind == THIN_SHEET ? 1 : m;
         for (int k = 0; k < m; k++)
             for (int j = 0; j < m; j++)
                 for (int i = 0; i < mx; i++) {
@@ -514,8 +522,11 @@ static double angmom_case(const char *what, stf_fluid_def d, int box, enum blob 
     }
     dBodyID b;
     dMass ms;
-    double mass = box == 2 ? 0.01 : 0.3; /* kg: the dumbbell is light (rho V = 0.023 kg) */
-    if (box == 2) { /* two geoms: the added-mass stabilisation acts on the body as one */
+    /* kg: a light body is lighter than the fluid it displaces (the dumbbell's rho V is 0.023 kg,
+       the sphere's 0.034 kg), so the added-mass stabilisation acts on it */
+    double mass = body >= LIGHT_DUMBBELL ? 0.01 : 0.3;
+    int box = body == HEAVY_CUBE || body == LIGHT_CUBE;
+    if (body == LIGHT_DUMBBELL) { /* two geoms: the added-mass stabilisation acts on the body as one */
         b = make_dumbbell(w, s, 0.014, 0.036, mass, (double[3]){0, 0, 0});
         dMassSetSphereTotal(&ms, mass, 0.025); /* a sphere's inertia, as the cube's (above) */
         dBodySetMass(b, &ms);
@@ -599,23 +610,29 @@ static void test_angular_momentum_exchange(void)
     struct {
         const char *what;
         stf_fluid_def d;
-        int box;
+        int body;
         enum blob kind;
     } cases[] = {
-        {"dust, sphere", clavet_def(0), 0, DUST},
-        {"dust, cube", clavet_def(0), 1, DUST},
-        {"sheet with pressure, sphere", clavet_def(STF_EFFECT_PRESSURE), 0, SHEET},
-        {"sheet with pressure, cube", clavet_def(STF_EFFECT_PRESSURE), 1, SHEET},
-        {"Carreau-Yasuda sheet, sphere", cy, 0, SHEET},
-        {"Carreau-Yasuda sheet, cube", cy, 1, SHEET},
-        /* a body of two geoms, light enough for the added-mass stabilisation to act (the
-           Clavet sheet with pressure is left out: there a light body still changes the total
-           by 3e-6 of the scale, a dumbbell by 2e-8: tests/README.md) */
-        {"dust, light dumbbell", clavet_def(0), 2, DUST},
-        {"Carreau-Yasuda sheet, light dumbbell", cy, 2, SHEET},
+        {"dust, sphere", clavet_def(0), HEAVY_SPHERE, DUST},
+        {"dust, cube", clavet_def(0), HEAVY_CUBE, DUST},
+        {"sheet with pressure, sphere", clavet_def(STF_EFFECT_PRESSURE), HEAVY_SPHERE, SHEET},
+        {"sheet with pressure, cube", clavet_def(STF_EFFECT_PRESSURE), HEAVY_CUBE, SHEET},
+        {"Carreau-Yasuda sheet, sphere", cy, HEAVY_SPHERE, SHEET},
+        {"Carreau-Yasuda sheet, cube", cy, HEAVY_CUBE, SHEET},
+        /* light bodies, for which the added-mass stabilisation acts (one of two geoms too) */
+        {"dust, light dumbbell", clavet_def(0), LIGHT_DUMBBELL, DUST},
+        {"thin sheet with pressure, light sphere", clavet_def(STF_EFFECT_PRESSURE), LIGHT_SPHERE,
+         THIN_SHEET},
+        {"thin sheet with pressure, light cube", clavet_def(STF_EFFECT_PRESSURE), LIGHT_CUBE,
+         THIN_SHEET},
+        {"thin sheet with pressure, light dumbbell", clavet_def(STF_EFFECT_PRESSURE),
+         LIGHT_DUMBBELL, THIN_SHEET},
+        /* (the Carreau-Yasuda thin sheet with light bodies: 2e-12 to 3e-11, not found yet;
+           tests/README.md) */
+        {"Carreau-Yasuda sheet, light dumbbell", cy, LIGHT_DUMBBELL, SHEET},
     };
     for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
-        double rel = angmom_case(cases[k].what, cases[k].d, cases[k].box, cases[k].kind, &fr, 50);
+        double rel = angmom_case(cases[k].what, cases[k].d, cases[k].body, cases[k].kind, &fr, 50);
         CHECK(rel < 1e-12, "%s: angular momentum changed by %g of its scale", cases[k].what, rel);
     }
 }
@@ -641,10 +658,10 @@ static void test_angular_momentum_blob(void)
     unsigned all = STF_EFFECT_VISCOSITY | STF_EFFECT_PRESSURE | STF_EFFECT_SPRINGS |
                    STF_EFFECT_HISTORY | STF_EFFECT_BOUNDARY_STICK;
     double r[4];
-    r[0] = angmom_case("Clavet blob, sphere, stick", clavet_def(all), 0, BLOB, &st, 50);
-    r[1] = angmom_case("Clavet blob, cube, stick", clavet_def(all), 1, BLOB, &st, 50);
-    r[2] = angmom_case("Carreau-Yasuda blob, sphere", cy_def(), 0, BLOB, &st, 50);
-    r[3] = angmom_case("Carreau-Yasuda blob, cube", cy_def(), 1, BLOB, &st, 50);
+    r[0] = angmom_case("Clavet blob, sphere, stick", clavet_def(all), HEAVY_SPHERE, BLOB, &st, 50);
+    r[1] = angmom_case("Clavet blob, cube, stick", clavet_def(all), HEAVY_CUBE, BLOB, &st, 50);
+    r[2] = angmom_case("Carreau-Yasuda blob, sphere", cy_def(), HEAVY_SPHERE, BLOB, &st, 50);
+    r[3] = angmom_case("Carreau-Yasuda blob, cube", cy_def(), HEAVY_CUBE, BLOB, &st, 50);
     CHECK(r[0] < 3e-3 && r[1] < 4e-3, "Clavet: angular momentum changed by %g and %g", r[0], r[1]);
     CHECK(r[2] < 0.8 && r[3] < 0.8, "Carreau-Yasuda: angular momentum changed by %g and %g", r[2],
           r[3]);
