@@ -303,6 +303,20 @@ static void test_errors(void)
                  "effects.pressure.rest: liquid is measured without tension", NULL);
     EXPECT_ERROR(MIN_HEAD "effects:\n  pressure: {mode: projection, rest: liquid}\n",
                  "effects.pressure.rest: a key of mode relax", NULL);
+    /* the relaxation's walls: a choice of mode relax */
+    EXPECT_ERROR(MIN_HEAD "effects:\n  pressure: {wall: image}\n",
+                 "effects.pressure.wall: expected one of: mirror, ghost", NULL);
+    EXPECT_ERROR(MIN_HEAD "effects:\n  pressure: {mode: projection, wall: ghost}\n",
+                 "effects.pressure.wall: a key of mode relax", NULL);
+    {
+        char e2[256];
+        stf_scene *sc = NULL;
+        CHECK(stf_scene_load_string("w.yaml", MIN_HEAD "effects:\n  pressure: {wall: ghost}\n",
+                                    NULL, 0, &sc, e2, sizeof e2) == 0 && sc &&
+                  sc->fluid.relax_wall == STF_RELAX_WALL_GHOST,
+              "pressure.wall ghost: %d (%s)", sc ? sc->fluid.relax_wall : -1, e2);
+        stf_scene_free(sc);
+    }
     {   /* the projection's blocks start on the lattice unless fluid.jitter is given */
         char e2[256];
         stf_scene *sc = NULL;
