@@ -68,8 +68,8 @@ int stf_cy_check_def(const stf_fluid_def *d, char *err, size_t errlen)
         FAIL("viscosity_solver: must be implicit or explicit (got %d)", c->viscosity_solver);
     if (c->pressure_solver != STF_PRESSURE_JACOBI && c->pressure_solver != STF_PRESSURE_CG)
         FAIL("pressure_solver: must be jacobi or cg (got %d)", c->pressure_solver);
-    if (c->wall_pressure != STF_WALL_PRESSURE_OWN && c->wall_pressure != STF_WALL_PRESSURE_MIRROR)
-        FAIL("wall_pressure: must be own or mirror (got %d)", c->wall_pressure);
+    if (c->wall_pressure < STF_WALL_PRESSURE_OWN || c->wall_pressure > STF_WALL_PRESSURE_HYDROSTATIC)
+        FAIL("wall_pressure: must be own, mirror or hydrostatic (got %d)", c->wall_pressure);
     if (c->pressure_gradient != STF_PRESSURE_GRADIENT_SYMMETRIC &&
         c->pressure_gradient != STF_PRESSURE_GRADIENT_LOCAL_MINIMUM)
         FAIL("pressure_gradient: must be symmetric or local_minimum (got %d)", c->pressure_gradient);
@@ -106,7 +106,8 @@ int stf_cy_create(stf_fluid *f)
     cy_state *c = calloc(1, sizeof *c);
     if (!c) return -1;
     stf_cy_tables(f, c);
-    c->mirror = f->def.cy.wall_pressure == STF_WALL_PRESSURE_MIRROR ? 2.0 : 1.0;
+    c->mirror = f->def.cy.wall_pressure == STF_WALL_PRESSURE_OWN ? 1.0 : 2.0;
+    c->hydro = f->def.cy.wall_pressure == STF_WALL_PRESSURE_HYDROSTATIC;
     /* The mirrored wall's pressure holds the fluid at half a spacing under any head (its
        lattice's first layer is there), so the collision stage is a backstop inside that: at
        half a spacing too it would stop every particle the pressure brings to the wall,
@@ -130,7 +131,7 @@ void stf_cy_free(stf_fluid *f)
     if (!c) return;
     void *arrays[] = {c->rho, c->S,   c->kappa,  c->ktot,   c->rhostar, c->gw,  c->qw,  c->wv,
                       c->nu,  c->b,   c->dv,     c->r,      c->p,       c->Ap,  c->kr,  c->irho,
-                      c->mu,  c->lw,  c->lwv, c->lwm,    c->sx,     c->pair,    c->lap, c->off, c->cstart,
+                      c->mu,  c->lw,  c->lwv, c->lwm, c->hw,    c->sx,     c->pair,    c->lap, c->off, c->cstart,
                       c->cellof, c->sid, c->nbt, c->nbc,    c->hit};
     for (size_t k = 0; k < sizeof arrays / sizeof *arrays; k++) free(arrays[k]);
     free(c);
@@ -151,7 +152,7 @@ static int reserve(stf_fluid *f, int n)
         grow(&c->rhostar, N) || grow(&c->gw, 3 * N) || grow(&c->qw, N) || grow(&c->wv, 9 * N) ||
         grow(&c->nu, N) || grow(&c->b, 3 * N) || grow(&c->dv, 3 * N) || grow(&c->r, 3 * N) ||
         grow(&c->p, 3 * N) || grow(&c->Ap, 3 * N) || grow(&c->lw, N) || grow(&c->lwv, 3 * N) ||
-        grow(&c->lwm, 9 * N))
+        grow(&c->lwm, 9 * N) || grow(&c->hw, 3 * N))
         return -1;
     char *hit = realloc(c->hit, N);
     if (!hit) return -1;
@@ -228,7 +229,7 @@ static int cy_substep(stf_fluid *f, double dt)
     for (int i = 0; i < n; i++) {
         density_one(f, i, w);
         for (int a = 0; a < 3; a++) {
-            f->v[3 * i + a] += dt * g[a];
+            f->v[3 * i + a] += dt * (g[a] + c->hw[3 * i + a]);
             f->xprev[3 * i + a] = f->x[3 * i + a];
         }
     }
@@ -288,7 +289,10 @@ int stf_cy_pressure_stage(stf_fluid *f, double dt)
     if (stf_cy_pair_offsets(f) != 0) return -1;
     double w = c->warm_n == n ? f->def.cy.warm_start : 0;
 #pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) density_one(f, i, w);
+    for (int i = 0; i < n; i++) {
+        density_one(f, i, w);
+        for (int a = 0; a < 3; a++) f->v[3 * i + a] += dt * c->hw[3 * i + a];
+    }
     project(f, dt, w);
     stf_cy_wall_reactions(f, dt, 0);
     c->stats.substeps = 1;
@@ -420,7 +424,7 @@ int stf_cy_describe(const stf_fluid *f, char *buf, size_t len)
                     c->mu0, c->mu_inf, c->K, c->alpha, c->n, c->eta, c->min_pressure_iterations,
                     c->max_pressure_iterations,
                     c->pressure_solver == STF_PRESSURE_CG ? "cg" : "jacobi",
-                    c->wall_pressure == STF_WALL_PRESSURE_MIRROR ? "mirror" : "own",
+                    stf_wall_pressure_name(c->wall_pressure),
                     c->pressure_gradient == STF_PRESSURE_GRADIENT_LOCAL_MINIMUM ? "local_minimum"
                                                                                 : "symmetric",
                     c->viscosity_solver == STF_VISCOSITY_EXPLICIT ? "explicit" : "implicit",

@@ -68,6 +68,14 @@ typedef struct cy_state {
     double quad_c11[WALL_BINS + 1][WALL_BINS + 1], quad_c22[WALL_BINS + 1][WALL_BINS + 1];
     double quad_c12[WALL_BINS + 1][WALL_BINS + 1], quad_cee[WALL_BINS + 1][WALL_BINS + 1];
     double *lwm;         /* 9n (central): sum over walls of M_w, row-major */
+    /* The hydrostatic difference the mirror's lattice carries (wall_pressure hydrostatic):
+       the moments sum_b m (dW/dr / r) x_ib x_ib^T of a half-space, normal and one tangential
+       component by distance, and of a container's quarter-space */
+    double wall_hn[WALL_BINS + 1], wall_ht[WALL_BINS + 1];
+    double quad_h11[WALL_BINS + 1][WALL_BINS + 1], quad_h22[WALL_BINS + 1][WALL_BINS + 1];
+    double quad_h12[WALL_BINS + 1][WALL_BINS + 1], quad_hee[WALL_BINS + 1][WALL_BINS + 1];
+    double *hw;          /* 3n: the walls' hydrostatic push on particle i, m/s^2 (or 0) */
+    int hydro;           /* 1: the walls' lattice carries the hydrostatic difference */
     cy_pair *pair;       /* off[n]: each particle's neighbours within h, compact (CSR) */
     int32_t *off;        /* n + 1: particle i's pairs are pair[off[i] .. off[i + 1]) */
     size_t pair_cap;

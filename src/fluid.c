@@ -161,8 +161,8 @@ int stf_fluid_check_def(const stf_fluid_def *d, char *err, size_t errlen, const 
                 c->max_pressure_iterations);
         if (c->pressure_solver != STF_PRESSURE_JACOBI && c->pressure_solver != STF_PRESSURE_CG)
             BAD("pressure.solver", "solver: must be jacobi or cg (got %d)", c->pressure_solver);
-        if (c->wall_pressure != STF_WALL_PRESSURE_OWN && c->wall_pressure != STF_WALL_PRESSURE_MIRROR)
-            BAD("pressure.wall_pressure", "wall_pressure: must be own or mirror (got %d)",
+        if (c->wall_pressure < STF_WALL_PRESSURE_OWN || c->wall_pressure > STF_WALL_PRESSURE_HYDROSTATIC)
+            BAD("pressure.wall_pressure", "wall_pressure: must be own, mirror or hydrostatic (got %d)",
                 c->wall_pressure);
         if (c->pressure_gradient != STF_PRESSURE_GRADIENT_SYMMETRIC &&
             c->pressure_gradient != STF_PRESSURE_GRADIENT_LOCAL_MINIMUM)
@@ -1039,7 +1039,7 @@ int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
                       "pressure_iterations: [%d, %d]\npressure_warm_start: %.9g\n"
                       "projection_rest_density: %.9g  # kg/m^3, the cubic spline's lattice sum\n",
                       d->cy.eta, d->cy.pressure_solver == STF_PRESSURE_CG ? "cg" : "jacobi",
-                      d->cy.wall_pressure == STF_WALL_PRESSURE_MIRROR ? "mirror" : "own",
+                      stf_wall_pressure_name(d->cy.wall_pressure),
                       d->cy.pressure_gradient == STF_PRESSURE_GRADIENT_LOCAL_MINIMUM ? "local_minimum"
                                                                                      : "symmetric",
                       d->cy.min_pressure_iterations, d->cy.max_pressure_iterations,

@@ -129,6 +129,9 @@ enum stf_wall_pressure {
                                      boundary particles of the paper carry no pressure) */
     STF_WALL_PRESSURE_MIRROR = 1, /* ours: the wall's lattice carries the particle's pressure
                                      and sees its approach as a mirror: twice the wall term */
+    STF_WALL_PRESSURE_HYDROSTATIC = 2, /* ours: the mirror, its lattice carrying the particle's
+                                          pressure plus the hydrostatic difference rho0 g.(x_b -
+                                          x_i), as the relaxation's mirror does */
 };
 
 /* The particles' pressure force in the Carreau-Yasuda projection (cy_pressure.c). */
@@ -355,6 +358,11 @@ STF_API stf_collider_def stf_default_collider_def(void);
  * particle squeezed into it by a body may be past its mid-plane), so it sends every particle
  * in it back into the container, and its outside is free. */
 static inline int stf_wall_two_sided(double wall, double spacing) { return wall >= spacing; }
+
+static inline const char *stf_wall_pressure_name(int w)
+{
+    return w == STF_WALL_PRESSURE_HYDROSTATIC ? "hydrostatic" : w == STF_WALL_PRESSURE_MIRROR ? "mirror" : "own";
+}
 /* A bounded shape's size about its body origin: the radius of the largest sphere inside it
  * (m; 0 for a convex hull that does not hold the origin) and of the smallest sphere holding
  * it (m). Returns 0; -1 for planes and containers (unbounded) or an invalid def. */

@@ -1,11 +1,11 @@
-# body_sweep_scene.py MODEL RS RATIO PLACE SHAPE [DURATION [NU]] -> a scene on stdout (the sweep
+# body_sweep_scene.py MODEL RS RATIO PLACE SHAPE [DURATION [NU]] [key=value ...] -> a scene on stdout (the sweep
 # of tests/cli_body_sweep.sh): MODEL cl (Clavet) | cy (Carreau-Yasuda, Newtonian, NU m^2/s,
 # default 3.8e-4); a
 # sphere of radius RS spacings (or a cube of side 2 RS spacings) of RATIO times the fluid's
 # density, placed inside the fluid (its centre at mid-depth), half in (its centre on the
 # surface) or above it (2 spacings clear), in water (970 kg/m^3) at 5 mm spacing that fills a
 # tank 8 spacings wider than the body and 10 spacings plus its diameter deep, settled for
-# 0.3 s (fluid.settle).
+# 0.3 s (fluid.settle). key=value adds to the carreau_yasuda block (wall_pressure=hydrostatic ...).
 # tank_scene() is the tank, the fluid and its settling that tests/held_sphere.py shares.
 import sys
 s = 0.005
@@ -56,5 +56,7 @@ if __name__ == "__main__":
         zc = {'inside': H/2, 'half': H, 'above': H+R+2*s}[place]
         geo = f"shape: sphere\n    radius: {R}" if shape == 'sphere' else f"shape: box\n    size: [{2*R}, {2*R}, {2*R}]"
         return f"    {geo}\n    density: {970*ratio}\n    position: [0, 0, {zc}]\n"
-    print(tank_scene("sw", model, RS, sys.argv[6] if len(sys.argv) > 6 else 0.6, 50,
-                     lambda R, H: H+2*R+0.05, body, nu=sys.argv[7] if len(sys.argv) > 7 else "3.8e-4"))
+    pos = [a for a in sys.argv[6:] if "=" not in a]
+    kv = [a.replace("=", ": ") for a in sys.argv[6:] if "=" in a]
+    print(tank_scene("sw", model, RS, pos[0] if pos else 0.6, 50,
+                     lambda R, H: H+2*R+0.05, body, kv, nu=pos[1] if len(pos) > 1 else "3.8e-4"))
