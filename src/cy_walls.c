@@ -17,7 +17,9 @@
  * which is how ODE bodies feel buoyancy and drag. With wall_pressure mirror (ours) the wall's
  * lattice carries the particle's own pressure, as the Clavet model's mirror does, and its part
  * in the projection counts twice (cy_state.mirror: the push, the density change, S_i and the
- * reactions below). Where two colliders meet, both count
+ * reactions below); with wall_pressure hydrostatic the lattice carries that pressure plus the
+ * hydrostatic difference, a fixed push (hydro_push), and a sphere's curvature comes from the
+ * continuum (solid_sums, sphere_moments). Where two colliders meet, both count
  * (the corner's lattice twice); a container's own faces count one by one, with the
  * quarter-space behind each edge subtracted once (the triple corner's octant is then
  * missing once: at least 0.87 h from a particle, a small term). */
@@ -198,6 +200,12 @@ static void sphere_at(const cy_state *c, double d, double R, double s, double h,
     }
 }
 
+/* Gauss-Legendre, 4 points on [-1, 1]: the sphere's integrals below */
+static const double glx[4] = {-0.8611363115940526, -0.3399810435848563, 0.3399810435848563,
+                             0.8611363115940526};
+static const double glw[4] = {0.3478548451374538, 0.6521451548625461, 0.6521451548625461,
+                             0.3478548451374538};
+
 /* The hydrostatic moments (normal, one tangential) of a sphere's lattice at distance d from
  * its surface, exactly for shells: layer l is the shell of radius R_l = R - s (l + 1/2) at
  * areal density 1 / s^2, and sum m (dW/dr / r) x x^T over it is, with r^2 = R_l^2 + c^2 -
@@ -206,10 +214,6 @@ static void sphere_at(const cy_state *c, double d, double R, double s, double h,
  * tangential. Gauss-Legendre, 4 points on each side of h / 2 (the kernel's kink). */
 static void sphere_moments(double d, double R, double s, double h, double m, double *hn, double *ht)
 {
-    static const double gx[4] = {-0.8611363115940526, -0.3399810435848563, 0.3399810435848563,
-                                 0.8611363115940526};
-    static const double gw[4] = {0.3478548451374538, 0.6521451548625461, 0.6521451548625461,
-                                 0.3478548451374538};
     double c = R + d;
     *hn = *ht = 0;
     for (int l = 0; l < WALL_LAYERS; l++) {
@@ -222,7 +226,7 @@ static void sphere_moments(double d, double R, double s, double h, double m, dou
             double a = cuts[seg], b = cuts[seg + 1];
             if (b <= a) continue;
             for (int q = 0; q < 4; q++) {
-                double r = 0.5 * (a + b) + 0.5 * (b - a) * gx[q], wq = 0.5 * (b - a) * gw[q];
+                double r = 0.5 * (a + b) + 0.5 * (b - a) * glx[q], wq = 0.5 * (b - a) * glw[q];
                 double zc = (Rl * Rl + c * c - r * r) / (2 * c), dw = kernel_dw(r, h);
                 sn += wq * dw * (zc - c) * (zc - c);
                 st += wq * dw * 0.5 * (Rl * Rl - zc * zc);
@@ -244,10 +248,6 @@ static void sphere_moments(double d, double R, double s, double h, double m, dou
  * 0.77 rho V g, 0.93 with the ratio; tests/README.md). */
 static void solid_sums(double d, double R, double h, double q[2])
 {
-    static const double gx[4] = {-0.8611363115940526, -0.3399810435848563, 0.3399810435848563,
-                                 0.8611363115940526};
-    static const double gw[4] = {0.3478548451374538, 0.6521451548625461, 0.6521451548625461,
-                                 0.3478548451374538};
     q[0] = q[1] = 0;
     double c = R + d, top = R > 0 ? R : h - d; /* the solid's depth within h */
     double lo = R > 0 && R > h - d ? R - (h - d) : 0;
@@ -255,14 +255,14 @@ static void solid_sums(double d, double R, double h, double q[2])
     for (int sa = 0; sa < 4; sa++) {
         double a0 = lo + (top - lo) * sa / 4, a1 = lo + (top - lo) * (sa + 1) / 4;
         for (int qa = 0; qa < 4; qa++) {
-            double u = 0.5 * (a0 + a1) + 0.5 * (a1 - a0) * gx[qa], wu = 0.5 * (a1 - a0) * gw[qa];
+            double u = 0.5 * (a0 + a1) + 0.5 * (a1 - a0) * glx[qa], wu = 0.5 * (a1 - a0) * glw[qa];
             double r0 = R > 0 ? fabs(c - u) : d + u, r1 = R > 0 && c + u < h ? c + u : h;
             if (r0 >= h) continue;
             for (int sb = 0; sb < 4; sb++) {
                 double b0 = r0 + (r1 - r0) * sb / 4, b1 = r0 + (r1 - r0) * (sb + 1) / 4;
                 for (int qb = 0; qb < 4; qb++) {
-                    double r = 0.5 * (b0 + b1) + 0.5 * (b1 - b0) * gx[qb];
-                    double wr = 0.5 * (b1 - b0) * gw[qb], jac, dn;
+                    double r = 0.5 * (b0 + b1) + 0.5 * (b1 - b0) * glx[qb];
+                    double wr = 0.5 * (b1 - b0) * glw[qb], jac, dn;
                     if (R > 0) {
                         double zc = (u * u + c * c - r * r) / (2 * c);
                         jac = 2 * PI * u * r / c, dn = (c - zc) / r;
