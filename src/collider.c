@@ -393,6 +393,21 @@ int stf_collider_container_faces(const collider *c, const double x[3], double d[
     return 5;
 }
 
+int stf_collider_box_faces(const collider *c, const double x[3], double d[6], double n[6][3])
+{
+    if (c->def.shape != STF_SHAPE_BOX) return 0;
+    double p[3];
+    to_local(c, x, p);
+    for (int a = 0; a < 3; a++) {
+        double e[3] = {0, 0, 0};
+        d[2 * a] = p[a] - c->def.half[a], d[2 * a + 1] = -p[a] - c->def.half[a];
+        e[a] = 1;
+        to_world_dir(c, e, n[2 * a]);
+        for (int b = 0; b < 3; b++) n[2 * a + 1][b] = -n[2 * a][b];
+    }
+    return 6;
+}
+
 void stf_collider_velocity_at(const collider *c, const double x[3], double v[3])
 {
     double r[3] = {x[0] - c->pos[0], x[1] - c->pos[1], x[2] - c->pos[2]};

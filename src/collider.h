@@ -39,6 +39,9 @@ double stf_collider_sdf(const collider *c, const double x[3], double n[3]);
  * (m, > 0 inside) and inward unit normals. Returns 5, or 0 when c is not a container or x is
  * outside its shell. */
 int stf_collider_container_faces(const collider *c, const double x[3], double d[5], double n[5][3]);
+/* A box body's six face planes at x: signed distances d (positive outside) and outward
+ * normals n (world); returns 6, or 0 when c is not a box. */
+int stf_collider_box_faces(const collider *c, const double x[3], double d[6], double n[6][3]);
 /* Velocity of the collider's material at world point x. */
 void stf_collider_velocity_at(const collider *c, const double x[3], double v[3]);
 /* Adds the per-particle impulses imp (3n, N s, on the particles at positions x) to the

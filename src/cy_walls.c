@@ -277,6 +277,67 @@ static void solid_sums(double d, double R, double h, double q[2])
     }
 }
 
+/* Adds sign times the quarter-space behind two perpendicular planes at distances d1, d2 (< h),
+ * n1 and n2 pointing from it to the particle, to the wall sums of wall_term. */
+static void add_quarter(const cy_state *c, double sign, double d1, double d2, const double n1[3],
+                        const double n2[3], double h, double G[3], double *rho, double *lap,
+                        double M[9], double H[9])
+{
+    double r, g1, g2, l, qc[4], hq[4];
+    quad_at(c, d1, d2, h, &r, &g1, &g2, &l, qc, hq);
+    *rho += sign * r;
+    *lap += sign * l;
+    /* c11 n1 n1^T + c22 n2 n2^T + c12 (n1 n2^T + n2 n1^T) + cee (I - n1 n1^T - n2 n2^T) */
+    for (int a = 0; a < 3; a++)
+        for (int b = 0; b < 3; b++) {
+            M[3 * a + b] += sign * ((qc[0] - qc[3]) * n1[a] * n1[b] + (qc[1] - qc[3]) * n2[a] * n2[b] +
+                                    qc[2] * (n1[a] * n2[b] + n2[a] * n1[b]) + (a == b ? qc[3] : 0));
+            H[3 * a + b] += sign * ((hq[0] - hq[3]) * n1[a] * n1[b] + (hq[1] - hq[3]) * n2[a] * n2[b] +
+                                    hq[2] * (n1[a] * n2[b] + n2[a] * n1[b]) + (a == b ? hq[3] : 0));
+        }
+    for (int a = 0; a < 3; a++) G[a] -= sign * (g1 * n1[a] + g2 * n2[a]);
+}
+
+/* A box body's wall (wall_pressure hydrostatic): the solid is where its six half-spaces meet.
+ * Beside one face (outside it alone) the face's half-space less the quarter-spaces beyond each
+ * neighbouring face's plane within h (the nearest face's half-space alone counted solid beyond
+ * the box's edges: a held cube 3 spacings wide felt 1.12 rho V g); beyond an edge (outside two
+ * faces) the quarter-space behind both. Beyond a corner (outside three) the nearest face's
+ * half-space, as before. Returns 0 beyond h. */
+static int box_term(const stf_fluid *f, const collider *col, const double x[3], double G[3],
+                    double *rho, double *lap, double M[9], double H[9])
+{
+    double d[6], n[6][3], h = f->h;
+    stf_collider_box_faces(col, x, d, n);
+    int out[3], nout = 0;
+    for (int k = 0; k < 6; k++)
+        if (d[k] > 0 && nout < 3) out[nout++] = k;
+    if (nout == 0 || nout == 3) return -1; /* inside, or beyond a corner: the nearest face */
+    if (nout == 2) {
+        if (d[out[0]] >= h || d[out[1]] >= h) return 0;
+        add_quarter(f->cy, 1, d[out[0]], d[out[1]], n[out[0]], n[out[1]], h, G, rho, lap, M, H);
+        return 1;
+    }
+    int p = out[0];
+    if (d[p] >= h) return 0;
+    double r, g, l, cn, ct, hn, ht;
+    wall_at(f->cy, d[p], h, &r, &g, &l, &cn, &ct, &hn, &ht);
+    *rho += r;
+    *lap += l;
+    for (int a = 0; a < 3; a++)
+        for (int b = 0; b < 3; b++) {
+            M[3 * a + b] += (cn - ct) * n[p][a] * n[p][b] + (a == b ? ct : 0);
+            H[3 * a + b] += (hn - ht) * n[p][a] * n[p][b] + (a == b ? ht : 0);
+        }
+    for (int a = 0; a < 3; a++) G[a] -= g * n[p][a];
+    for (int q = 0; q < 6; q++) { /* the neighbouring faces: not p, not its opposite */
+        if (q / 2 == p / 2 || -d[q] >= h) continue;
+        double away[3] = {-n[q][0], -n[q][1], -n[q][2]};
+        add_quarter(f->cy, -1, d[p], -d[q], n[p], away, h, G, rho, lap, M, H);
+    }
+    return 1;
+}
+
 /* Collider k's wall term at particle i: returns 1 within h, with G = sum_b m grad W_ib
  * (pointing into the solid), the density it adds, the viscous terms (Morris' lap, the
  * central form's block M, row-major) and the solid's velocity there. A container
@@ -302,6 +363,13 @@ static int wall_term(const stf_fluid *f, const collider *col, int i, double G[3]
     memset(M, 0, 9 * sizeof *M);
     memset(H, 0, 9 * sizeof *H);
     int sphere = col->def.shape == STF_SHAPE_SPHERE;
+    if (f->cy->hydro && col->def.shape == STF_SHAPE_BOX) {
+        int b = box_term(f, col, x, G, rho, lap, M, H);
+        if (b >= 0) {
+            if (b) stf_collider_velocity_at(col, x, vb);
+            return b;
+        }
+    }
     for (int k = 0; k < faces; k++) {
         if (fd[k] >= h) continue;
         double r, g, l, cn, ct, hn, ht;
@@ -336,21 +404,7 @@ static int wall_term(const stf_fluid *f, const collider *col, int i, double G[3]
     for (int e = 0; faces == 5 && e < 8; e++) {
         int p = pairs[e][0], q = pairs[e][1];
         if (fd[p] >= h || fd[q] >= h) continue;
-        double r, g1, g2, l, qc[4], hq[4];
-        quad_at(f->cy, fd[p], fd[q], h, &r, &g1, &g2, &l, qc, hq);
-        *rho -= r;
-        *lap -= l;
-        /* c11 n1 n1^T + c22 n2 n2^T + c12 (n1 n2^T + n2 n1^T) + cee (I - n1 n1^T - n2 n2^T) */
-        const double *n1 = fn[p], *n2 = fn[q];
-        for (int a = 0; a < 3; a++)
-            for (int b = 0; b < 3; b++)
-                M[3 * a + b] -= (qc[0] - qc[3]) * n1[a] * n1[b] + (qc[1] - qc[3]) * n2[a] * n2[b] +
-                                qc[2] * (n1[a] * n2[b] + n2[a] * n1[b]) + (a == b ? qc[3] : 0);
-        for (int a = 0; a < 3; a++)
-            for (int b = 0; b < 3; b++)
-                H[3 * a + b] -= (hq[0] - hq[3]) * n1[a] * n1[b] + (hq[1] - hq[3]) * n2[a] * n2[b] +
-                                hq[2] * (n1[a] * n2[b] + n2[a] * n1[b]) + (a == b ? hq[3] : 0);
-        for (int a = 0; a < 3; a++) G[a] += g1 * fn[p][a] + g2 * fn[q][a];
+        add_quarter(f->cy, -1, fd[p], fd[q], fn[p], fn[q], h, G, rho, lap, M, H);
     }
     if (hit) stf_collider_velocity_at(col, x, vb);
     return hit;

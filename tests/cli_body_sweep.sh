@@ -26,7 +26,7 @@
 stf=$STF; src=$PROJ
 export OMP_NUM_THREADS=1 OMP_WAIT_POLICY=passive
 cases="3:0.25:inside:sphere 3:0.5:inside:sphere 3:0.75:half:sphere 3:4:inside:sphere
-3:0.5:above:sphere 3:0.5:half:box 3:0.25:half:box 1.5:0.25:inside:sphere 1.5:4:above:sphere"
+3:0.5:above:sphere 3:0.5:half:box 3:0.25:half:box 3:0.75:half:box 1.5:0.25:inside:sphere 1.5:4:above:sphere"
 # and a light sphere in a viscous Carreau-Yasuda fluid (NU m^2/s, implicit viscosity), where
 # the explicit coupling spun it up to 700 rad/s (NU 0.01) or threw it out at 26 m/s (NU 1)
 # within 10 ms before the added-mass stabilisation took the fluid within sqrt(NU dt) of it
