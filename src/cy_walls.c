@@ -145,25 +145,43 @@ static void quad_at(const cy_state *c, double d1, double d2, double h, double *r
 #undef BILIN
 }
 
-/* Wall sums at distance d from a flat wall: density and the normal gradient magnitude. */
-static void wall_at(const cy_state *c, double d, double h, double *rho, double *grad, double *lap,
-                    double *cn, double *ct, double *hn, double *ht)
+/* A wall's sums at particle i, in the order of the face terms: density, the normal gradient
+ * magnitude, Morris' lap, the central form's normal and tangential blocks, the hydrostatic
+ * normal and tangential moments. */
+enum { F_RHO, F_GRAD, F_LAP, F_CN, F_CT, F_HN, F_HT, F_COUNT };
+
+/* The sums of a flat wall at distance d. */
+static void wall_at(const cy_state *c, double d, double h, double v[F_COUNT])
 {
     double u = d / h * WALL_BINS;
     if (u < 0) u = 0;
     if (u >= WALL_BINS) {
-        *rho = *grad = *lap = *cn = *ct = *hn = *ht = 0;
+        for (int q = 0; q < F_COUNT; q++) v[q] = 0;
         return;
     }
     int b = (int)u;
     double t = u - b;
-    *rho = (1 - t) * c->wall_rho[b] + t * c->wall_rho[b + 1];
-    *grad = (1 - t) * c->wall_grad[b] + t * c->wall_grad[b + 1];
-    *lap = (1 - t) * c->wall_lap[b] + t * c->wall_lap[b + 1];
-    *cn = (1 - t) * c->wall_cn[b] + t * c->wall_cn[b + 1];
-    *ct = (1 - t) * c->wall_ct[b] + t * c->wall_ct[b + 1];
-    *hn = (1 - t) * c->wall_hn[b] + t * c->wall_hn[b + 1];
-    *ht = (1 - t) * c->wall_ht[b] + t * c->wall_ht[b + 1];
+    v[F_RHO] = (1 - t) * c->wall_rho[b] + t * c->wall_rho[b + 1];
+    v[F_GRAD] = (1 - t) * c->wall_grad[b] + t * c->wall_grad[b + 1];
+    v[F_LAP] = (1 - t) * c->wall_lap[b] + t * c->wall_lap[b + 1];
+    v[F_CN] = (1 - t) * c->wall_cn[b] + t * c->wall_cn[b + 1];
+    v[F_CT] = (1 - t) * c->wall_ct[b] + t * c->wall_ct[b + 1];
+    v[F_HN] = (1 - t) * c->wall_hn[b] + t * c->wall_hn[b + 1];
+    v[F_HT] = (1 - t) * c->wall_ht[b] + t * c->wall_ht[b + 1];
+}
+
+/* Adds a face's sums v, n its normal out of the solid, to the wall sums of wall_term. */
+static void add_face(const double v[F_COUNT], const double n[3], double G[3], double *rho,
+                     double *lap, double M[9], double H[9])
+{
+    *rho += v[F_RHO];
+    *lap += v[F_LAP];
+    for (int a = 0; a < 3; a++)
+        for (int b = 0; b < 3; b++) {
+            M[3 * a + b] += (v[F_CN] - v[F_CT]) * n[a] * n[b] + (a == b ? v[F_CT] : 0);
+            H[3 * a + b] += (v[F_HN] - v[F_HT]) * n[a] * n[b] + (a == b ? v[F_HT] : 0);
+        }
+    for (int a = 0; a < 3; a++) G[a] -= v[F_GRAD] * n[a];
 }
 
 /* A sphere's wall at distance d from its surface (radius R): the half-space's layers, each
@@ -320,16 +338,9 @@ static int box_term(const stf_fluid *f, const collider *col, const double x[3], 
     }
     int p = out[0];
     if (d[p] >= h) return 0;
-    double r, g, l, cn, ct, hn, ht;
-    wall_at(f->cy, d[p], h, &r, &g, &l, &cn, &ct, &hn, &ht);
-    *rho += r;
-    *lap += l;
-    for (int a = 0; a < 3; a++)
-        for (int b = 0; b < 3; b++) {
-            M[3 * a + b] += (cn - ct) * n[p][a] * n[p][b] + (a == b ? ct : 0);
-            H[3 * a + b] += (hn - ht) * n[p][a] * n[p][b] + (a == b ? ht : 0);
-        }
-    for (int a = 0; a < 3; a++) G[a] -= g * n[p][a];
+    double v[F_COUNT];
+    wall_at(f->cy, d[p], h, v);
+    add_face(v, n[p], G, rho, lap, M, H);
     for (int q = 0; q < 6; q++) { /* the neighbouring faces: not p, not its opposite */
         if (q / 2 == p / 2 || -d[q] >= h) continue;
         double away[3] = {-n[q][0], -n[q][1], -n[q][2]};
@@ -350,6 +361,17 @@ static int wall_term(const stf_fluid *f, const collider *col, int i, double G[3]
     const double *x = f->x + 3 * i;
     double h = f->h;
     if (!stf_collider_near(col, x, h)) return 0;
+    *rho = *lap = 0;
+    G[0] = G[1] = G[2] = 0;
+    memset(M, 0, 9 * sizeof *M);
+    memset(H, 0, 9 * sizeof *H);
+    if (f->cy->hydro && col->def.shape == STF_SHAPE_BOX) {
+        int b = box_term(f, col, x, G, rho, lap, M, H);
+        if (b >= 0) {
+            if (b) stf_collider_velocity_at(col, x, vb);
+            return b;
+        }
+    }
     double fd[5], fn[5][3];
     int faces = stf_collider_container_faces(col, x, fd, fn), hit = 0;
     if (faces == 0) {
@@ -358,45 +380,25 @@ static int wall_term(const stf_fluid *f, const collider *col, int i, double G[3]
         fd[0] = d;
         faces = 1;
     }
-    *rho = *lap = 0;
-    G[0] = G[1] = G[2] = 0;
-    memset(M, 0, 9 * sizeof *M);
-    memset(H, 0, 9 * sizeof *H);
     int sphere = col->def.shape == STF_SHAPE_SPHERE;
-    if (f->cy->hydro && col->def.shape == STF_SHAPE_BOX) {
-        int b = box_term(f, col, x, G, rho, lap, M, H);
-        if (b >= 0) {
-            if (b) stf_collider_velocity_at(col, x, vb);
-            return b;
-        }
-    }
     for (int k = 0; k < faces; k++) {
         if (fd[k] >= h) continue;
-        double r, g, l, cn, ct, hn, ht;
+        double v[F_COUNT];
         if (sphere) {
-            double o[5];
-            sphere_at(f->cy, fd[k], col->def.radius, f->def.spacing, h, o);
-            r = o[0], g = o[1], l = o[2], cn = o[3], ct = o[4], hn = ht = 0;
+            sphere_at(f->cy, fd[k], col->def.radius, f->def.spacing, h, v);
+            v[F_HN] = v[F_HT] = 0;
             if (f->cy->hydro) { /* curvature from the continuum: the flat table times ball / half-space */
-                double qs[2], qf[2], lap0, cn0, ct0, hn0, ht0, rf, gf;
+                double qs[2], qf[2], flat[F_COUNT];
                 solid_sums(fd[k], col->def.radius, h, qs), solid_sums(fd[k], 0, h, qf);
-                wall_at(f->cy, fd[k], h, &rf, &gf, &lap0, &cn0, &ct0, &hn0, &ht0);
-                r = qf[0] > 0 ? rf * qs[0] / qf[0] : 0;
-                g = qf[1] > 0 ? gf * qs[1] / qf[1] : 0;
-                sphere_moments(fd[k], col->def.radius, f->def.spacing, h, f->mass, &hn, &ht);
+                wall_at(f->cy, fd[k], h, flat);
+                v[F_RHO] = qf[0] > 0 ? flat[F_RHO] * qs[0] / qf[0] : 0;
+                v[F_GRAD] = qf[1] > 0 ? flat[F_GRAD] * qs[1] / qf[1] : 0;
+                sphere_moments(fd[k], col->def.radius, f->def.spacing, h, f->mass, &v[F_HN], &v[F_HT]);
             }
         } else {
-            wall_at(f->cy, fd[k], h, &r, &g, &l, &cn, &ct, &hn, &ht);
+            wall_at(f->cy, fd[k], h, v);
         }
-        *rho += r;
-        *lap += l;
-        for (int a = 0; a < 3; a++)
-            for (int b = 0; b < 3; b++)
-                M[3 * a + b] += (cn - ct) * fn[k][a] * fn[k][b] + (a == b ? ct : 0);
-        for (int a = 0; a < 3; a++)
-            for (int b = 0; b < 3; b++)
-                H[3 * a + b] += (hn - ht) * fn[k][a] * fn[k][b] + (a == b ? ht : 0);
-        for (int a = 0; a < 3; a++) G[a] -= g * fn[k][a];
+        add_face(v, fn[k], G, rho, lap, M, H);
         hit = 1;
     }
     /* container edges: faces 0/1 (x) and 2/3 (y) meet each other and the floor (4) */
