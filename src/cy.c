@@ -70,12 +70,11 @@ int stf_cy_check_def(const stf_fluid_def *d, char *err, size_t errlen)
         FAIL("pressure_solver: must be jacobi or cg (got %d)", c->pressure_solver);
     if (c->wall_pressure < STF_WALL_PRESSURE_OWN || c->wall_pressure > STF_WALL_PRESSURE_HYDROSTATIC)
         FAIL("wall_pressure: must be own, mirror or hydrostatic (got %d)", c->wall_pressure);
-    if (c->pressure_gradient != STF_PRESSURE_GRADIENT_SYMMETRIC &&
-        c->pressure_gradient != STF_PRESSURE_GRADIENT_LOCAL_MINIMUM)
-        FAIL("pressure_gradient: must be symmetric or local_minimum (got %d)", c->pressure_gradient);
-    if (c->pressure_gradient == STF_PRESSURE_GRADIENT_LOCAL_MINIMUM && c->pressure_solver != STF_PRESSURE_JACOBI)
-        FAIL("pressure_gradient: local_minimum needs pressure_solver jacobi (conjugate "
-             "gradients need the symmetric form's symmetric matrix)");
+    if (c->pressure_gradient < STF_PRESSURE_GRADIENT_SYMMETRIC || c->pressure_gradient > STF_PRESSURE_GRADIENT_OFFSET)
+        FAIL("pressure_gradient: must be symmetric, local_minimum or offset (got %d)", c->pressure_gradient);
+    if (c->pressure_gradient != STF_PRESSURE_GRADIENT_SYMMETRIC && c->pressure_solver != STF_PRESSURE_JACOBI)
+        FAIL("pressure_gradient: %s needs pressure_solver jacobi (conjugate gradients need the "
+             "symmetric form's symmetric matrix)", stf_pressure_gradient_name(c->pressure_gradient));
     if (c->viscosity_form != STF_VISCOSITY_MORRIS && c->viscosity_form != STF_VISCOSITY_CENTRAL)
         FAIL("viscosity_form: must be morris or central (got %d)", c->viscosity_form);
     if (!(c->cg_tolerance > 0 && c->cg_tolerance < 1))
@@ -132,7 +131,7 @@ void stf_cy_free(stf_fluid *f)
     void *arrays[] = {c->rho, c->S,   c->kappa,  c->ktot,   c->rhostar, c->gw,  c->qw,  c->wv,
                       c->nu,  c->b,   c->dv,     c->r,      c->p,       c->Ap,  c->kr,  c->irho,
                       c->mu,  c->lw,  c->lwv, c->lwm, c->hw,    c->sx,     c->pair,    c->lap, c->off, c->cstart,
-                      c->cellof, c->sid, c->nbt, c->nbc,    c->hit};
+                      c->cellof, c->sid, c->nbt, c->nbc,    c->hit, c->wlist};
     for (size_t k = 0; k < sizeof arrays / sizeof *arrays; k++) free(arrays[k]);
     free(c);
     f->cy = NULL;
@@ -144,7 +143,7 @@ static int reserve(stf_fluid *f, int n)
     size_t N = (size_t)n;
     if (n <= c->cap) return 0;
     if (c->nbs == 0) c->nbs = 64;
-    if (grow_i32(&c->off, N + 1) || grow_i32(&c->cellof, N) || grow_i32(&c->sid, N) ||
+    if (grow_i32(&c->off, N + 1) || grow_i32(&c->cellof, N) || grow_i32(&c->sid, N) || grow_i32(&c->wlist, N) ||
         grow_i32(&c->nbc, N) || grow_i32(&c->nbt, N * (size_t)c->nbs))
         return -1;
     if (grow(&c->sx, 3 * N) || grow(&c->kr, N) || grow(&c->irho, N) || grow(&c->mu, N) ||
@@ -425,8 +424,7 @@ int stf_cy_describe(const stf_fluid *f, char *buf, size_t len)
                     c->max_pressure_iterations,
                     c->pressure_solver == STF_PRESSURE_CG ? "cg" : "jacobi",
                     stf_wall_pressure_name(c->wall_pressure),
-                    c->pressure_gradient == STF_PRESSURE_GRADIENT_LOCAL_MINIMUM ? "local_minimum"
-                                                                                : "symmetric",
+                    stf_pressure_gradient_name(c->pressure_gradient),
                     c->viscosity_solver == STF_VISCOSITY_EXPLICIT ? "explicit" : "implicit",
                     c->viscosity_form == STF_VISCOSITY_CENTRAL ? "central" : "morris",
                     c->cg_tolerance, c->max_cg_iterations, c->cfl, c->dt_max, c->warm_start,

@@ -95,6 +95,7 @@ typedef struct cy_state {
     int nbs;             /* stride of nbt */
     int dense;           /* 1: this substep's lists are nbt/nbc, 0: the shared grid's */
     char *hit;
+    int32_t *wlist;      /* n: the particles within h of one collider (surface_pressure) */
     int warm_n;          /* particles ktot holds the last step's totals of (0: none) */
     stf_solver_stats stats;
 } cy_state;

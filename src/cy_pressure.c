@@ -53,12 +53,21 @@ static void grad_at(const stf_fluid *f, const double *y, int i, double u[3])
  * feels its buoyancy as with the symmetric form (with the offset form at the walls too, the
  * walls' reactions of the absolute pressure no longer matched where the particles sit: a held
  * sphere of 2 spacings 10 cm deep felt 0.83 rho V g). Not linear in y: the Jacobi projection
- * re-applies the whole pressure each iteration (apply_kappa). */
+ * re-applies the whole pressure each iteration (apply_kappa).
+ *
+ * pressure_gradient offset (ours): the offset form at the walls too, the walls' sites carrying
+ * y_i - y_min (their hydrostatic difference is the fixed push c->hw). The packing around a body
+ * is then free of the absolute pressure as well: with the symmetric form there, a sphere moving
+ * at 10 mm/s in a thin oil felt a resistance that grew with its depth and with the distance it
+ * had moved, not with its speed (a granular packing's friction, tests/README.md, "Moving
+ * through a deep fluid"). Bodies then take their pressure force from the fluid's pressure on
+ * their surface (cy_walls.c, surface_pressure), not from the particles' wall terms. */
 static void grad_min_at(const stf_fluid *f, const double *y, int i, double u[3])
 {
     const cy_state *c = f->cy;
     const double *G = c->gw + 3 * i;
-    if (G[0] != 0 || G[1] != 0 || G[2] != 0) {
+    int walls = G[0] != 0 || G[1] != 0 || G[2] != 0;
+    if (walls && f->def.cy.pressure_gradient != STF_PRESSURE_GRADIENT_OFFSET) {
         grad_at(f, y, i, u);
         return;
     }
@@ -70,7 +79,7 @@ static void grad_min_at(const stf_fluid *f, const double *y, int i, double u[3])
         d[0] += yj * pr->g[0], d[1] += yj * pr->g[1], d[2] += yj * pr->g[2];
         gs[0] += pr->g[0], gs[1] += pr->g[1], gs[2] += pr->g[2];
     }
-    for (int a = 0; a < 3; a++) u[a] = f->mass * (d[a] - lo * gs[a]);
+    for (int a = 0; a < 3; a++) u[a] = f->mass * (d[a] - lo * gs[a]) + c->mirror * (y[i] - lo) * G[a];
 }
 
 static void grad_one(const stf_fluid *f, const double *y, double *u, int i)
@@ -180,7 +189,7 @@ void stf_cy_pressure_project(stf_fluid *f, double dt, double w)
     cy_state *c = f->cy;
     int n = f->n, iter = 0;
     double err, omega = f->def.cy.relaxation > 0 ? f->def.cy.relaxation : 1.0;
-    int lm = f->def.cy.pressure_gradient == STF_PRESSURE_GRADIENT_LOCAL_MINIMUM;
+    int lm = f->def.cy.pressure_gradient != STF_PRESSURE_GRADIENT_SYMMETRIC;
     if (lm) memcpy(c->dv, f->v, (size_t)n * 3 * sizeof *f->v);
     if (w > 0) apply_kappa(f, dt, lm); /* the warm start (kappa: the density pass's) */
 #pragma omp parallel for schedule(static)

@@ -479,6 +479,100 @@ static void pressure_part(const stf_fluid *f, collider *col, const double *pj)
     }
 }
 
+/* The fluid's pressure at point q (Pa): the pressures p_j = rho0 sum k_j of the particles in
+ * list (m of them) within h of q, each carried to q hydrostatically (+ rho0 g.(q - x_j)), and
+ * averaged with the kernel's weights (Shepard's); 0 where no particle is near, and never below
+ * zero (the projection holds no tension). */
+static double pressure_at(const stf_fluid *f, const int32_t *list, int m, const double q[3],
+                          const double g[3])
+{
+    const cy_state *c = f->cy;
+    double h = f->h, sw = 0, sp = 0;
+    for (int k = 0; k < m; k++) {
+        int j = list[k];
+        const double *x = f->x + 3 * j;
+        double d[3] = {q[0] - x[0], q[1] - x[1], q[2] - x[2]};
+        double r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        if (r2 >= h * h) continue;
+        double w = kernel_w(sqrt(r2), h);
+        sw += w;
+        sp += w * c->rho0 * (c->ktot[j] + g[0] * d[0] + g[1] * d[1] + g[2] * d[2]);
+    }
+    double p = sw > 0 ? sp / sw : 0;
+    return p > 0 ? p : 0;
+}
+
+/* Whether collider col takes its pressure force from its surface (surface_pressure). */
+static int surface_body(const stf_fluid *f, const collider *col)
+{
+    return f->def.cy.pressure_gradient == STF_PRESSURE_GRADIENT_OFFSET && col->bound >= 0 &&
+           (col->def.shape == STF_SHAPE_SPHERE || col->def.shape == STF_SHAPE_BOX);
+}
+
+/* A body's pressure force from the fluid's pressure on its surface, -sum p(q) n A over points
+ * q about half a spacing apart (pressure_gradient offset, ours): a sphere's on a Fibonacci
+ * lattice, a box's on a grid on each face. The particles' wall terms then carry only the
+ * pressures offset by their neighbourhood's least (cy_pressure.c, grad_min_at), and that sum
+ * no longer holds the absolute pressure; the surface integral does, and it does not depend on
+ * how the particles next to the body happen to sit (gaps a few percent narrower in front of
+ * a moving sphere than behind it, times the absolute pressure, were a resistance that grew
+ * with its depth). Not equal and opposite to what the particles feel: the offset form is not
+ * pairwise either. The particles within h of the body are those the reactions marked (c->hit). */
+static void surface_pressure(stf_fluid *f, collider *col, double dt)
+{
+    cy_state *c = f->cy;
+    int m = 0;
+    for (int i = 0; i < f->n; i++)
+        if (c->hit[i]) c->wlist[m++] = i;
+    if (m == 0) return;
+    static const double zero[3] = {0, 0, 0};
+    const double *g = (f->def.effects & STF_EFFECT_GRAVITY) ? f->def.gravity : zero;
+    double ds = 0.5 * f->def.spacing, F[3] = {0, 0, 0}, M[3] = {0, 0, 0};
+    if (col->def.shape == STF_SHAPE_SPHERE) {
+        double R = col->def.radius, area = 4 * PI * R * R;
+        int N = (int)ceil(area / (ds * ds));
+        N = N < 32 ? 32 : N;
+        for (int k = 0; k < N; k++) { /* Fibonacci lattice: equal areas */
+            double z = 1 - (2 * k + 1.0) / N, rxy = sqrt(1 - z * z), phi = k * PI * (3 - sqrt(5.0));
+            double nrm[3] = {rxy * cos(phi), rxy * sin(phi), z}, q[3];
+            for (int a = 0; a < 3; a++) q[a] = col->pos[a] + R * nrm[a];
+            double pA = pressure_at(f, c->wlist, m, q, g) * area / N;
+            for (int a = 0; a < 3; a++) F[a] -= pA * nrm[a];
+        }
+    } else {
+        const double *hx = col->def.half, *rot = col->rot;
+        for (int face = 0; face < 6; face++) {
+            int a0 = face / 2, a1 = (a0 + 1) % 3, a2 = (a0 + 2) % 3;
+            double sg = face % 2 ? -1 : 1;
+            int n1 = (int)ceil(2 * hx[a1] / ds), n2 = (int)ceil(2 * hx[a2] / ds);
+            double A = (2 * hx[a1] / n1) * (2 * hx[a2] / n2), nl[3] = {0, 0, 0}, nrm[3];
+            nl[a0] = sg;
+            for (int a = 0; a < 3; a++) nrm[a] = rot[3 * a] * nl[0] + rot[3 * a + 1] * nl[1] + rot[3 * a + 2] * nl[2];
+            for (int i1 = 0; i1 < n1; i1++)
+                for (int i2 = 0; i2 < n2; i2++) {
+                    double l[3], r[3], q[3];
+                    l[a0] = sg * hx[a0];
+                    l[a1] = ((i1 + 0.5) / n1 * 2 - 1) * hx[a1];
+                    l[a2] = ((i2 + 0.5) / n2 * 2 - 1) * hx[a2];
+                    for (int a = 0; a < 3; a++) {
+                        r[a] = rot[3 * a] * l[0] + rot[3 * a + 1] * l[1] + rot[3 * a + 2] * l[2];
+                        q[a] = col->pos[a] + r[a];
+                    }
+                    double pA = pressure_at(f, c->wlist, m, q, g) * A, Fq[3];
+                    for (int a = 0; a < 3; a++) Fq[a] = -pA * nrm[a], F[a] += Fq[a];
+                    M[0] += r[1] * Fq[2] - r[2] * Fq[1];
+                    M[1] += r[2] * Fq[0] - r[0] * Fq[2];
+                    M[2] += r[0] * Fq[1] - r[1] * Fq[0];
+                }
+        }
+    }
+    for (int a = 0; a < 3; a++) {
+        col->impulse[a] += dt * F[a];
+        col->part[STF_PART_PRESSURE][a] += dt * F[a];
+        col->moment[a] += dt * M[a];
+    }
+}
+
 /* The impulses the walls gave the particles during the step go back to the colliders:
  * pressure -dt (sum k_i / rho_i) G and, with viscous, viscous dt (the wall part of
  * viscous_one), the latter with the velocity u the viscous step evaluated (c->r,
@@ -490,6 +584,7 @@ void stf_cy_wall_reactions(stf_fluid *f, double dt, int viscous)
     int n = f->n;
     for (int k = 0; k < f->ncolliders; k++) {
         collider *col = &f->colliders[k];
+        int surf = surface_body(f, col); /* its pressure from its surface, not from here */
 #pragma omp parallel for schedule(static)
         for (int i = 0; i < n; i++) {
             double G[3] = {0, 0, 0}, rho = 0, lap = 0, M[9], vb[3] = {0, 0, 0}, H[9], hp[3];
@@ -498,7 +593,7 @@ void stf_cy_wall_reactions(stf_fluid *f, double dt, int viscous)
             double ki = c->mirror * c->ktot[i] / c->rho[i];
             hydro_push(f, H, hp);
             double P[3]; /* the pressure's velocity change on the particle is -dt P */
-            for (int a = 0; a < 3; a++) P[a] = ki * G[a] - hp[a];
+            for (int a = 0; a < 3; a++) P[a] = surf ? 0 : ki * G[a] - hp[a];
             if (viscous) /* the pressure's part, for pressure_part (Ap: the viscous solve's scratch) */
                 for (int a = 0; a < 3; a++) c->Ap[3 * i + a] = f->mass * dt * P[a];
             if (!viscous) {
@@ -521,5 +616,6 @@ void stf_cy_wall_reactions(stf_fluid *f, double dt, int viscous)
         stf_collider_take_reaction(col, c->dv, f->x, c->hit, n,
                                    viscous ? STF_PART_VISCOSITY : STF_PART_PRESSURE);
         if (viscous) pressure_part(f, col, c->Ap);
+        if (surf) surface_pressure(f, col, dt);
     }
 }

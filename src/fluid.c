@@ -164,14 +164,15 @@ int stf_fluid_check_def(const stf_fluid_def *d, char *err, size_t errlen, const 
         if (c->wall_pressure < STF_WALL_PRESSURE_OWN || c->wall_pressure > STF_WALL_PRESSURE_HYDROSTATIC)
             BAD("pressure.wall_pressure", "wall_pressure: must be own, mirror or hydrostatic (got %d)",
                 c->wall_pressure);
-        if (c->pressure_gradient != STF_PRESSURE_GRADIENT_SYMMETRIC &&
-            c->pressure_gradient != STF_PRESSURE_GRADIENT_LOCAL_MINIMUM)
-            BAD("pressure.gradient", "gradient: must be symmetric or local_minimum (got %d)",
+        if (c->pressure_gradient < STF_PRESSURE_GRADIENT_SYMMETRIC ||
+            c->pressure_gradient > STF_PRESSURE_GRADIENT_OFFSET)
+            BAD("pressure.gradient", "gradient: must be symmetric, local_minimum or offset (got %d)",
                 c->pressure_gradient);
-        if (c->pressure_gradient == STF_PRESSURE_GRADIENT_LOCAL_MINIMUM &&
+        if (c->pressure_gradient != STF_PRESSURE_GRADIENT_SYMMETRIC &&
             c->pressure_solver != STF_PRESSURE_JACOBI)
-            BAD("pressure.gradient", "gradient: local_minimum needs solver jacobi (conjugate "
-                                     "gradients need the symmetric form's symmetric matrix)");
+            BAD("pressure.gradient", "gradient: %s needs solver jacobi (conjugate gradients need "
+                                     "the symmetric form's symmetric matrix)",
+                stf_pressure_gradient_name(c->pressure_gradient));
         if (!(c->cg_tolerance > 0 && c->cg_tolerance < 1))
             BAD("pressure.cg_tolerance", "cg_tolerance: must be in (0,1) (got %g)", c->cg_tolerance);
         if (!(c->max_cg_iterations >= 1 && c->max_cg_iterations <= 100000))
@@ -1040,8 +1041,7 @@ int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
                       "projection_rest_density: %.9g  # kg/m^3, the cubic spline's lattice sum\n",
                       d->cy.eta, d->cy.pressure_solver == STF_PRESSURE_CG ? "cg" : "jacobi",
                       stf_wall_pressure_name(d->cy.wall_pressure),
-                      d->cy.pressure_gradient == STF_PRESSURE_GRADIENT_LOCAL_MINIMUM ? "local_minimum"
-                                                                                     : "symmetric",
+                      stf_pressure_gradient_name(d->cy.pressure_gradient),
                       d->cy.min_pressure_iterations, d->cy.max_pressure_iterations,
                       d->cy.warm_start, stf_fluid_cy_rest_density(f));
     if (d->history_mode == STF_HISTORY_SOE && w >= 0 && (size_t)w < len)

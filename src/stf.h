@@ -141,6 +141,9 @@ enum stf_pressure_gradient {
                                                 pressures offset by their neighbourhood's least
                                                 (Koshizuka and Oka 1996): a uniform pressure
                                                 pushes no particle (jacobi only) */
+    STF_PRESSURE_GRADIENT_OFFSET = 2,        /* ours: the same at the walls too, and a sphere's or
+                                                a box's pressure force from the fluid's pressure
+                                                on its surface (cy_walls.c; jacobi only) */
 };
 
 enum stf_viscosity_solver {
@@ -358,6 +361,11 @@ STF_API stf_collider_def stf_default_collider_def(void);
  * particle squeezed into it by a body may be past its mid-plane), so it sends every particle
  * in it back into the container, and its outside is free. */
 static inline int stf_wall_two_sided(double wall, double spacing) { return wall >= spacing; }
+
+static inline const char *stf_pressure_gradient_name(int g)
+{
+    return g == STF_PRESSURE_GRADIENT_OFFSET ? "offset" : g == STF_PRESSURE_GRADIENT_LOCAL_MINIMUM ? "local_minimum" : "symmetric";
+}
 
 static inline const char *stf_wall_pressure_name(int w)
 {
