@@ -17,12 +17,6 @@ static void to_local(const collider *c, const double x[3], double p[3])
     for (int a = 0; a < 3; a++) p[a] = R[a] * d[0] + R[3 + a] * d[1] + R[6 + a] * d[2];
 }
 
-static void to_world_dir(const collider *c, const double l[3], double w[3])
-{
-    const double *R = c->rot;
-    for (int a = 0; a < 3; a++) w[a] = R[3 * a] * l[0] + R[3 * a + 1] * l[1] + R[3 * a + 2] * l[2];
-}
-
 static double norm3(const double a[3]) { return sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]); }
 
 static double sdf_box(const double p[3], const double half[3], double n[3])
@@ -165,7 +159,7 @@ static void support_hull(const void *obj, const ccd_vec3_t *dir, ccd_vec3_t *vec
         if (d > bd) bd = d, best = k;
     }
     double w[3];
-    to_world_dir(c, c->points + 3 * best, w);
+    stf_collider_world_dir(c, c->points + 3 * best, w);
     ccdVec3Set(vec, w[0] + c->pos[0], w[1] + c->pos[1], w[2] + c->pos[2]);
 }
 
@@ -322,7 +316,7 @@ static double sdf_convex(const collider *c, const double x[3], double n[3])
         double p[3], nl[3];
         to_local(c, x, p);
         double d = hull_distance(c, p, nl);
-        to_world_dir(c, nl, n);
+        stf_collider_world_dir(c, nl, n);
         return d;
     }
     /* dir: the direction to move the point to separate it, i.e. out of the hull. */
@@ -344,7 +338,7 @@ double stf_collider_sdf(const collider *c, const double x[3], double n[3])
     switch (c->def.shape) {
     case STF_SHAPE_PLANE: {
         double nw[3];
-        to_world_dir(c, c->def.normal, nw);
+        stf_collider_world_dir(c, c->def.normal, nw);
         n[0] = nw[0], n[1] = nw[1], n[2] = nw[2];
         return nw[0] * (x[0] - c->pos[0]) + nw[1] * (x[1] - c->pos[1]) +
                nw[2] * (x[2] - c->pos[2]) - c->def.offset;
@@ -371,7 +365,7 @@ double stf_collider_sdf(const collider *c, const double x[3], double n[3])
     else if (c->def.shape == STF_SHAPE_CYLINDER)
         d = sdf_cylinder(p, c->def.radius, c->def.half_length, nl);
     else d = sdf_container(p, c->def.half, c->def.wall, c->two_sided, nl);
-    to_world_dir(c, nl, n);
+    stf_collider_world_dir(c, nl, n);
     return d;
 }
 
@@ -389,7 +383,7 @@ int stf_collider_container_faces(const collider *c, const double x[3], double d[
     d[0] = p[0] + half[0], d[1] = half[0] - p[0];
     d[2] = p[1] + half[1], d[3] = half[1] - p[1];
     d[4] = p[2];
-    for (int k = 0; k < 5; k++) to_world_dir(c, nl[k], n[k]);
+    for (int k = 0; k < 5; k++) stf_collider_world_dir(c, nl[k], n[k]);
     return 5;
 }
 
@@ -402,7 +396,7 @@ int stf_collider_box_faces(const collider *c, const double x[3], double d[6], do
         double e[3] = {0, 0, 0};
         d[2 * a] = p[a] - c->def.half[a], d[2 * a + 1] = -p[a] - c->def.half[a];
         e[a] = 1;
-        to_world_dir(c, e, n[2 * a]);
+        stf_collider_world_dir(c, e, n[2 * a]);
         for (int b = 0; b < 3; b++) n[2 * a + 1][b] = -n[2 * a][b];
     }
     return 6;

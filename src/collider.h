@@ -42,6 +42,12 @@ int stf_collider_container_faces(const collider *c, const double x[3], double d[
 /* A box body's six face planes at x: signed distances d (positive outside) and outward
  * normals n (world); returns 6, or 0 when c is not a box. */
 int stf_collider_box_faces(const collider *c, const double x[3], double d[6], double n[6][3]);
+/* A direction (or an offset from pos) in the body frame, l, in world coordinates, w. */
+static inline void stf_collider_world_dir(const collider *c, const double l[3], double w[3])
+{
+    const double *R = c->rot;
+    for (int a = 0; a < 3; a++) w[a] = R[3 * a] * l[0] + R[3 * a + 1] * l[1] + R[3 * a + 2] * l[2];
+}
 /* Velocity of the collider's material at world point x. */
 void stf_collider_velocity_at(const collider *c, const double x[3], double v[3]);
 /* Adds the per-particle impulses imp (3n, N s, on the particles at positions x) to the

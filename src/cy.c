@@ -143,8 +143,8 @@ static int reserve(stf_fluid *f, int n)
     size_t N = (size_t)n;
     if (n <= c->cap) return 0;
     if (c->nbs == 0) c->nbs = 64;
-    if (grow_i32(&c->off, N + 1) || grow_i32(&c->cellof, N) || grow_i32(&c->sid, N) || grow_i32(&c->wlist, N) ||
-        grow_i32(&c->nbc, N) || grow_i32(&c->nbt, N * (size_t)c->nbs))
+    if (grow_i32(&c->off, N + 1) || grow_i32(&c->cellof, N) || grow_i32(&c->sid, N) ||
+        grow_i32(&c->wlist, N) || grow_i32(&c->nbc, N) || grow_i32(&c->nbt, N * (size_t)c->nbs))
         return -1;
     if (grow(&c->sx, 3 * N) || grow(&c->kr, N) || grow(&c->irho, N) || grow(&c->mu, N) ||
         grow(&c->rho, N) || grow(&c->S, N) || grow(&c->kappa, N) || grow(&c->ktot, N) ||

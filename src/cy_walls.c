@@ -540,24 +540,22 @@ static void surface_pressure(stf_fluid *f, collider *col, double dt)
             for (int a = 0; a < 3; a++) F[a] -= pA * nrm[a];
         }
     } else {
-        const double *hx = col->def.half, *rot = col->rot;
+        const double *hx = col->def.half;
         for (int face = 0; face < 6; face++) {
             int a0 = face / 2, a1 = (a0 + 1) % 3, a2 = (a0 + 2) % 3;
             double sg = face % 2 ? -1 : 1;
             int n1 = (int)ceil(2 * hx[a1] / ds), n2 = (int)ceil(2 * hx[a2] / ds);
             double A = (2 * hx[a1] / n1) * (2 * hx[a2] / n2), nl[3] = {0, 0, 0}, nrm[3];
             nl[a0] = sg;
-            for (int a = 0; a < 3; a++) nrm[a] = rot[3 * a] * nl[0] + rot[3 * a + 1] * nl[1] + rot[3 * a + 2] * nl[2];
+            stf_collider_world_dir(col, nl, nrm);
             for (int i1 = 0; i1 < n1; i1++)
                 for (int i2 = 0; i2 < n2; i2++) {
                     double l[3], r[3], q[3];
                     l[a0] = sg * hx[a0];
                     l[a1] = ((i1 + 0.5) / n1 * 2 - 1) * hx[a1];
                     l[a2] = ((i2 + 0.5) / n2 * 2 - 1) * hx[a2];
-                    for (int a = 0; a < 3; a++) {
-                        r[a] = rot[3 * a] * l[0] + rot[3 * a + 1] * l[1] + rot[3 * a + 2] * l[2];
-                        q[a] = col->pos[a] + r[a];
-                    }
+                    stf_collider_world_dir(col, l, r);
+                    for (int a = 0; a < 3; a++) q[a] = col->pos[a] + r[a];
                     double pA = pressure_at(f, c->wlist, m, q, g) * A, Fq[3];
                     for (int a = 0; a < 3; a++) Fq[a] = -pA * nrm[a], F[a] += Fq[a];
                     M[0] += r[1] * Fq[2] - r[2] * Fq[1];
@@ -587,13 +585,15 @@ void stf_cy_wall_reactions(stf_fluid *f, double dt, int viscous)
         int surf = surface_body(f, col); /* its pressure from its surface, not from here */
 #pragma omp parallel for schedule(static)
         for (int i = 0; i < n; i++) {
-            double G[3] = {0, 0, 0}, rho = 0, lap = 0, M[9], vb[3] = {0, 0, 0}, H[9], hp[3];
+            double G[3] = {0, 0, 0}, rho = 0, lap = 0, M[9], vb[3] = {0, 0, 0}, H[9];
             c->hit[i] = (char)wall_term(f, col, i, G, &rho, &lap, M, vb, H);
             if (!c->hit[i]) continue;
-            double ki = c->mirror * c->ktot[i] / c->rho[i];
-            hydro_push(f, H, hp);
-            double P[3]; /* the pressure's velocity change on the particle is -dt P */
-            for (int a = 0; a < 3; a++) P[a] = surf ? 0 : ki * G[a] - hp[a];
+            double P[3] = {0, 0, 0}; /* the pressure's velocity change on the particle is -dt P */
+            if (!surf) {
+                double ki = c->mirror * c->ktot[i] / c->rho[i], hp[3];
+                hydro_push(f, H, hp);
+                for (int a = 0; a < 3; a++) P[a] = ki * G[a] - hp[a];
+            }
             if (viscous) /* the pressure's part, for pressure_part (Ap: the viscous solve's scratch) */
                 for (int a = 0; a < 3; a++) c->Ap[3 * i + a] = f->mass * dt * P[a];
             if (!viscous) {
