@@ -222,6 +222,7 @@ static int cy_substep(stf_fluid *f, double dt)
     /* one pass: walls, density and S_i, the warm start's k_i, gravity (Eq. 11), and the
        positions at the substep's start (xprev) */
     double w = c->warm_n == n ? f->def.cy.warm_start : 0, g[3] = {0, 0, 0};
+    stf_cy_sphere_tables(f);
     if (has(f, STF_EFFECT_GRAVITY))
         for (int a = 0; a < 3; a++) g[a] = f->def.gravity[a];
 #pragma omp parallel for schedule(static)
@@ -287,6 +288,7 @@ int stf_cy_pressure_stage(stf_fluid *f, double dt)
     c->dense = dense;
     if (stf_cy_pair_offsets(f) != 0) return -1;
     double w = c->warm_n == n ? f->def.cy.warm_start : 0;
+    stf_cy_sphere_tables(f);
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) {
         density_one(f, i, w);

@@ -20,6 +20,8 @@
 #define PI 3.14159265358979323846
 /* lattice layers of a wall within the support h <= 5 s: ceil(h / s) + 2 */
 #define WALL_LAYERS 7
+#define SPHERE_TABS 8
+#define SPHERE_BINS 256
 
 /* A neighbour pair: j and grad W_ij (1/m^4, float: the pair arrays are streamed on every
  * pass, so their size is the cost). */
@@ -96,6 +98,12 @@ typedef struct cy_state {
     int dense;           /* 1: this substep's lists are nbt/nbc, 0: the shared grid's */
     char *hit;
     int32_t *wlist;      /* n: the particles within h of one collider (surface_pressure) */
+    /* A sphere's wall terms of wall_pressure hydrostatic by distance d in [0, h], for up to
+       SPHERE_TABS radii (stf_cy_sphere_tables): [0], [1] the ball over the half-space of
+       solid_sums (density, normal gradient), [2], [3] the hydrostatic moments
+       (sphere_moments, normal and tangential); other radii and d < 0 are computed */
+    struct { double R; double q[4][SPHERE_BINS + 1]; } sphere_tab[SPHERE_TABS];
+    int nsphere_tab;
     int warm_n;          /* particles ktot holds the last step's totals of (0: none) */
     stf_solver_stats stats;
 } cy_state;
@@ -161,6 +169,7 @@ int stf_cy_pair_offsets(stf_fluid *f);
  * particle i (into c->gw, qw, wv, lw, lwv, lwm, and rho: the walls' part of the density);
  * the walls' impulses of the substep given back to the colliders. */
 void stf_cy_tables(stf_fluid *f, cy_state *c);
+void stf_cy_sphere_tables(stf_fluid *f);
 void stf_cy_walls_one(stf_fluid *f, int i);
 void stf_cy_wall_reactions(stf_fluid *f, double dt, int viscous);
 

@@ -295,6 +295,58 @@ static void solid_sums(double d, double R, double h, double q[2])
     }
 }
 
+/* A sphere's terms at distance d (q[0], q[1]: the ball over the half-space of solid_sums,
+ * density and normal gradient; q[2], q[3]: sphere_moments), computed. */
+static void sphere_terms_at(const stf_fluid *f, double R, double d, double q[4])
+{
+    double qs[2], qf[2], h = f->h;
+    solid_sums(d, R, h, qs), solid_sums(d, 0, h, qf);
+    q[0] = qf[0] > 0 ? qs[0] / qf[0] : 0;
+    q[1] = qf[1] > 0 ? qs[1] / qf[1] : 0;
+    sphere_moments(d, R, f->def.spacing, h, f->mass, &q[2], &q[3]);
+}
+
+/* Tabulates sphere_terms_at by distance for every sphere collider's radius not yet in
+ * cy_state's tables (serial, before the parallel wall pass: the quadratures took a tenth of a
+ * Carreau-Yasuda step beside a sphere). */
+void stf_cy_sphere_tables(stf_fluid *f)
+{
+    cy_state *c = f->cy;
+    if (!c->hydro) return;
+    for (int k = 0; k < f->ncolliders; k++) {
+        const collider *col = &f->colliders[k];
+        if (col->def.shape != STF_SHAPE_SPHERE || c->nsphere_tab == SPHERE_TABS) continue;
+        int t = 0;
+        while (t < c->nsphere_tab && c->sphere_tab[t].R != col->def.radius) t++;
+        if (t < c->nsphere_tab) continue;
+        c->sphere_tab[t].R = col->def.radius;
+        for (int b = 0; b <= SPHERE_BINS; b++) {
+            double q[4];
+            sphere_terms_at(f, col->def.radius, f->h * b / SPHERE_BINS, q);
+            for (int a = 0; a < 4; a++) c->sphere_tab[t].q[a][b] = q[a];
+        }
+        c->nsphere_tab++;
+    }
+}
+
+/* sphere_terms_at from the tables (linear in d; 256 bins over h: within 1e-5 of the
+ * quadratures), or computed for a radius not in them and inside the sphere (d < 0). */
+static void sphere_terms(const stf_fluid *f, double R, double d, double q[4])
+{
+    const cy_state *c = f->cy;
+    int t = 0;
+    while (t < c->nsphere_tab && c->sphere_tab[t].R != R) t++;
+    double u = d / f->h * SPHERE_BINS;
+    if (t == c->nsphere_tab || !(u >= 0)) {
+        sphere_terms_at(f, R, d, q);
+        return;
+    }
+    if (u >= SPHERE_BINS) u = SPHERE_BINS;
+    int b = u < SPHERE_BINS ? (int)u : SPHERE_BINS - 1;
+    double w = u - b;
+    for (int a = 0; a < 4; a++) q[a] = (1 - w) * c->sphere_tab[t].q[a][b] + w * c->sphere_tab[t].q[a][b + 1];
+}
+
 /* Adds sign times the quarter-space behind two perpendicular planes at distances d1, d2 (< h),
  * n1 and n2 pointing from it to the particle, to the wall sums of wall_term. */
 static void add_quarter(const cy_state *c, double sign, double d1, double d2, const double n1[3],
@@ -388,12 +440,12 @@ static int wall_term(const stf_fluid *f, const collider *col, int i, double G[3]
             sphere_at(f->cy, fd[k], col->def.radius, f->def.spacing, h, v);
             v[F_HN] = v[F_HT] = 0;
             if (f->cy->hydro) { /* curvature from the continuum: the flat table times ball / half-space */
-                double qs[2], qf[2], flat[F_COUNT];
-                solid_sums(fd[k], col->def.radius, h, qs), solid_sums(fd[k], 0, h, qf);
+                double q[4], flat[F_COUNT];
+                sphere_terms(f, col->def.radius, fd[k], q);
                 wall_at(f->cy, fd[k], h, flat);
-                v[F_RHO] = qf[0] > 0 ? flat[F_RHO] * qs[0] / qf[0] : 0;
-                v[F_GRAD] = qf[1] > 0 ? flat[F_GRAD] * qs[1] / qf[1] : 0;
-                sphere_moments(fd[k], col->def.radius, f->def.spacing, h, f->mass, &v[F_HN], &v[F_HT]);
+                v[F_RHO] = flat[F_RHO] * q[0];
+                v[F_GRAD] = flat[F_GRAD] * q[1];
+                v[F_HN] = q[2], v[F_HT] = q[3];
             }
         } else {
             wall_at(f->cy, fd[k], h, v);
