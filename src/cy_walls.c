@@ -329,8 +329,10 @@ void stf_cy_sphere_tables(stf_fluid *f)
     }
 }
 
-/* sphere_terms_at from the tables (linear in d; 256 bins over h: within 1e-5 of the
- * quadratures), or computed for a radius not in them and inside the sphere (d < 0). */
+/* sphere_terms_at from the tables (linear in d, 256 bins over h: a held sphere of 1.5
+ * spacings felt the same force within 5.3e-5 of it), or computed for a radius not in them and
+ * inside the sphere (d < 0). The last bin runs to the ratio's 0 at d = h, where the flat
+ * table it multiplies is 0 too. */
 static void sphere_terms(const stf_fluid *f, double R, double d, double q[4])
 {
     const cy_state *c = f->cy;
