@@ -144,14 +144,14 @@ static double mean_error(const stf_fluid *f)
 }
 
 /* Adds this iteration's kappa to the pressure and sets the velocities from it. Symmetric:
- * the change of kappa alone, in place (pressure_dv_one). Local minimum: not linear in the
- * pressure, so the whole pressure y = ktot / rho (in the scratch c->b) from the velocities
- * before the projection (v0, in c->dv). */
-static void apply_kappa(stf_fluid *f, double dt, int local_minimum)
+ * the change of kappa alone, in place (pressure_dv_one). The offset forms (local_minimum,
+ * offset): not linear in the pressure, so the whole pressure y = ktot / rho (in the scratch
+ * c->b) from the velocities before the projection (v0, in c->dv). */
+static void apply_kappa(stf_fluid *f, double dt, int offset_form)
 {
     cy_state *c = f->cy;
     int n = f->n;
-    if (!local_minimum) {
+    if (!offset_form) {
 #pragma omp parallel for schedule(static)
         for (int i = 0; i < n; i++) pressure_dv_one(f, i, dt);
         return;
@@ -189,13 +189,13 @@ void stf_cy_pressure_project(stf_fluid *f, double dt, double w)
     cy_state *c = f->cy;
     int n = f->n, iter = 0;
     double err, omega = f->def.cy.relaxation > 0 ? f->def.cy.relaxation : 1.0;
-    int lm = f->def.cy.pressure_gradient != STF_PRESSURE_GRADIENT_SYMMETRIC;
-    if (lm) memcpy(c->dv, f->v, (size_t)n * 3 * sizeof *f->v);
-    if (w > 0) apply_kappa(f, dt, lm); /* the warm start (kappa: the density pass's) */
+    int offset_form = f->def.cy.pressure_gradient != STF_PRESSURE_GRADIENT_SYMMETRIC; /* local_minimum, offset */
+    if (offset_form) memcpy(c->dv, f->v, (size_t)n * 3 * sizeof *f->v);
+    if (w > 0) apply_kappa(f, dt, offset_form); /* the warm start (kappa: the density pass's) */
 #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) predict_kappa_one(f, f->v, i, dt, omega);
     do {
-        apply_kappa(f, dt, lm);
+        apply_kappa(f, dt, offset_form);
 #pragma omp parallel for schedule(static)
         for (int i = 0; i < n; i++) predict_kappa_one(f, f->v, i, dt, omega);
         err = mean_error(f);

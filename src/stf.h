@@ -362,9 +362,13 @@ STF_API stf_collider_def stf_default_collider_def(void);
  * in it back into the container, and its outside is free. */
 static inline int stf_wall_two_sided(double wall, double spacing) { return wall >= spacing; }
 
+/* The scene keys' names of enum stf_pressure_gradient, in its order (NULL-terminated: the
+ * scene parser's list of choices). */
+#define STF_PRESSURE_GRADIENT_NAMES {"symmetric", "local_minimum", "offset", NULL}
 static inline const char *stf_pressure_gradient_name(int g)
 {
-    return g == STF_PRESSURE_GRADIENT_OFFSET ? "offset" : g == STF_PRESSURE_GRADIENT_LOCAL_MINIMUM ? "local_minimum" : "symmetric";
+    static const char *const names[] = STF_PRESSURE_GRADIENT_NAMES;
+    return g >= STF_PRESSURE_GRADIENT_SYMMETRIC && g <= STF_PRESSURE_GRADIENT_OFFSET ? names[g] : "?";
 }
 
 static inline const char *stf_wall_pressure_name(int w)

@@ -725,7 +725,7 @@ static int parse_history(loader *L, const mapv *h)
  * projection): the names in the order of their enums (stf.h), so the index is the value. */
 static const char *const psolvers[] = {"jacobi", "cg", NULL};
 static const char *const walls[] = {"own", "mirror", "hydrostatic", NULL};
-static const char *const gradients[] = {"symmetric", "local_minimum", "offset", NULL};
+static const char *const gradients[] = STF_PRESSURE_GRADIENT_NAMES;
 
 /* effects.carreau_yasuda: the second paper's model (needs fluid.model: carreau_yasuda). */
 static int parse_carreau_yasuda(loader *L, const mapv *p)
