@@ -1,6 +1,7 @@
 /* plot.c - `stf plot OUT.h5`: a PNG with two stacked panels, a body's centre height z(t)
- * and its velocity (vertical vz(t) and horizontal speed), with the fluid's surface height,
- * first contact, bounce peaks and the sink time marked. Without bodies the fluid's centre
+ * and its velocity (vertical vz(t) and horizontal speed), with the fluid's surface height S,
+ * the centre height S - R under which the body's top is under S (the sink metric), first
+ * contact, bounce peaks and the sink time marked. Without bodies the fluid's centre
  * of mass is plotted instead. */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
@@ -17,7 +18,8 @@
 static const cli_usage USAGE = {
     "plot", "usage: stf plot OUT.h5 [-o FILE.png] [--body NAME] [--width W] [--height H]\n",
     "Draws a PNG of two panels: a body's centre height z(t) and its velocity (vz and the\n"
-    "horizontal speed), with the fluid's surface height, the first contact, the bounce peaks\n"
+    "horizontal speed), with the fluid's surface height S, the centre height S - R under\n"
+    "which the body's top is under S (the sink metric), the first contact, the bounce peaks\n"
     "and the sink time marked; without bodies, the fluid's centre of mass.\n"
     "options:\n"
     "  -o FILE.png   the picture (default: OUT_plot.png, OUT without .h5)\n"
@@ -267,9 +269,11 @@ int cli_plot(int argc, char **argv)
     int have_m = stf_metrics_compute(in, &m, err, sizeof err) == 0;
     if (!have_m) fprintf(stderr, "stf plot: no markers (%s)\n", err);
     double surface = have_m ? m.surface_height : NAN, t_contact = NAN, t_sink = NAN;
+    double sunk = NAN; /* the centre height below which the body's top is under S (sink_time) */
     int bounces = -1;
     for (int i = 0; have_m && body && i < m.nbodies; i++)
         if (!strcmp(m.bodies[i].name, body)) {
+            if (m.bodies[i].radius > 0) sunk = surface - m.bodies[i].radius;
             t_contact = m.bodies[i].first_contact_time;
             t_sink = m.bodies[i].sink_time;
             bounces = m.bodies[i].bounces;
@@ -295,6 +299,7 @@ int cli_plot(int argc, char **argv)
     if (!(pz.u1 > pz.u0)) pz.u1 = pv.u1 = pz.u0 + 1;
     minmax(s.z, s.n, &pz.v0, &pz.v1);
     if (isfinite(surface)) minmax(&surface, 1, &pz.v0, &pz.v1);
+    if (isfinite(sunk)) minmax(&sunk, 1, &pz.v0, &pz.v1);
     minmax(s.vz, s.n, &pv.v0, &pv.v1);
     minmax(s.vh, s.n, &pv.v0, &pv.v1);
     if (!isfinite(pz.v0)) pz.v0 = 0, pz.v1 = 1;
@@ -325,6 +330,12 @@ int cli_plot(int argc, char **argv)
         canvas_dashed_line(c, pz.x0, y, pz.x1, y, GREEN, 1.8, 10, 6);
         const char *lab = "surface";
         canvas_text_halo(c, pz.x1 - 8 - canvas_text_width(lab, TS), (int)lround(y) - 20, lab, GREEN, WHITE, TS);
+    }
+    if (isfinite(sunk) && sunk >= pz.v0 && sunk <= pz.v1) { /* the sink metric's line */
+        double y = canvas_axes_y(&pz, sunk);
+        canvas_dashed_line(c, pz.x0, y, pz.x1, y, GREY, 1.4, 6, 6);
+        const char *lab = "surface - R: top under the surface";
+        canvas_text_halo(c, pz.x0 + 8, (int)lround(y) + 6, lab, GREY, WHITE, TS);
     }
     if (pv.v0 < 0 && pv.v1 > 0) canvas_line(c, pv.x0, canvas_axes_y(&pv, 0), pv.x1, canvas_axes_y(&pv, 0), GREY, 1.2);
 
