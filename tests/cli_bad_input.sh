@@ -208,6 +208,18 @@ mk blocks_touch.yaml '/^      velocity: \[0.2, 0, -0.5\]/a\
 "$STF" run blocks_touch.yaml -o touch.h5 --quiet --duration 0.01 >touch.out 2>touch.err ||
     fail "two blocks that touch were refused: $(tail -n 2 touch.err)"
 grep -q "note:" touch.err && fail "two blocks that touch got a note: $(head -c 300 touch.err)"
+# a body that starts inside the fluid without fluid.settle runs, with a note that it will feel
+# no buoyancy until the pressure has built up, naming the body and its line; with settle, none
+L=$(line_of "$BASE" '^  - name: ball')
+"$STF" run "$BASE" -o immersed.h5 --quiet --duration 0.01 --set 'bodies.0.position=[0, 0, 0.05]' \
+    --set 'bodies.0.velocity=[0, 0, 0]' >immersed.out 2>immersed.err ||
+    fail "a body inside the fluid: exit $?: $(tail -n 2 immersed.err)"
+grep -E -q "^stf: note: body 'ball' \(.*small_drop\.yaml:$L\) starts inside fluid\.blocks\.0 and fluid\.settle is 0" immersed.err ||
+    fail "a body inside the fluid: no note naming it: $(head -c 300 immersed.err)"
+"$STF" run "$BASE" -o immersed.h5 --quiet --duration 0.01 --set 'bodies.0.position=[0, 0, 0.05]' \
+    --set 'bodies.0.velocity=[0, 0, 0]' --set fluid.settle=0.02 >immersed.out 2>immersed.err ||
+    fail "a body inside the settled fluid: exit $?: $(tail -n 2 immersed.err)"
+grep -q "starts inside" immersed.err && fail "a body inside the settled fluid got the note: $(head -c 300 immersed.err)"
 # a body that starts inside another (ODE would throw them apart) is refused; one that only
 # touches it runs
 expect_bad body_in_body 'bodies\.1\.position: the body .b2. starts inside bodies\.0 \(.ball.\)' -- \
