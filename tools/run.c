@@ -203,6 +203,26 @@ static void note_immersed(const stf_scene *sc)
     }
 }
 
+/* pressure_gradient offset with a wall other than hydrostatic: the walls then push with the
+ * particle's pressure less its neighbourhood's least, so nothing carries the column's weight
+ * at a wall but a pressure jump there. Measured: a still column 21 cm deep at 3.5 mm
+ * (Newtonian, nu 3.8e-4 m^2/s, eta 1e-4 or 1e-3, warm start 0, 0.5 or 1) blew up at a floor
+ * corner within 18-71 steps of its settle, and ran with the hydrostatic wall (tests/README.md,
+ * "Which wall `offset` wants"). Legal (the steel sphere's drag converges with it in a shallow
+ * tank), so a note. */
+static void note_offset_wall(const stf_scene *sc)
+{
+    const stf_cy_def *c = &sc->fluid.cy;
+    if (c->pressure_gradient != STF_PRESSURE_GRADIENT_OFFSET || c->wall_pressure == STF_WALL_PRESSURE_HYDROSTATIC)
+        return;
+    fprintf(stderr,
+            "stf: note: pressure_gradient offset with wall_pressure %s: the walls push with only "
+            "the pressure's local differences, and a still column 21 cm deep blew up at its "
+            "floor's corner within 18-71 steps; wall_pressure: hydrostatic carries the column "
+            "(tests/README.md, \"Which wall `offset` wants\")\n",
+            stf_wall_pressure_name(c->wall_pressure));
+}
+
 /* Refuses an output path that would destroy something that is not a previous output: the
  * scene file itself, or an existing non-empty file without the HDF5 signature (a typo in
  * -o must not eat a scene or a note). Returns 0 or 2 with a message. */
@@ -777,6 +797,7 @@ int cli_run(int argc, char **argv, int check)
         }
         if (sc->blocks_note[0]) fprintf(stderr, "stf: note: %s\n", sc->blocks_note);
         note_immersed(sc);
+        note_offset_wall(sc);
         own = a.out ? NULL : default_out(sc);
         out = a.out ? a.out : own;
         status = check_steps(&a, sc, NULL, check);
