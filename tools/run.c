@@ -175,8 +175,8 @@ static int is_hdf5(const char *path)
 /* A body that starts inside the fluid without fluid.settle: the blocks are a lattice without
  * pressure, which gravity accelerates with the body until the pressure has built up from the
  * floor, so the body feels no buoyancy in its first steps (a Carreau-Yasuda sphere of 1.5
- * spacings in a 16 cm column: -0.01 rho V g for 10 ms, then 3.4 rho V g; tests/README.md,
- * "Buoyancy by radius"). Legal (a drop into a pool starting in free fall is a scene), so a
+ * spacings in a 16 cm column: -0.01 rho V g for 10 ms, then 3.4 rho V g; scenes/README.md,
+ * `fluid.settle`). Legal (a drop into a pool starting in free fall is a scene), so a
  * note, once, naming the first such body. */
 static void note_immersed(const stf_scene *sc)
 {
