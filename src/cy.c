@@ -424,7 +424,7 @@ int stf_cy_describe(const stf_fluid *f, char *buf, size_t len)
                     "rest_density_cy: %.9g  # kg/m^3, kernel sum of the lattice\n",
                     c->mu0, c->mu_inf, c->K, c->alpha, c->n, c->eta, c->min_pressure_iterations,
                     c->max_pressure_iterations,
-                    c->pressure_solver == STF_PRESSURE_CG ? "cg" : "jacobi",
+                    stf_pressure_solver_name(c->pressure_solver),
                     stf_wall_pressure_name(c->wall_pressure),
                     stf_pressure_gradient_name(c->pressure_gradient),
                     c->viscosity_solver == STF_VISCOSITY_EXPLICIT ? "explicit" : "implicit",

@@ -1039,7 +1039,7 @@ int stf_fluid_describe(const stf_fluid *f, char *buf, size_t len)
                       "pressure_gradient: %s\n"
                       "pressure_iterations: [%d, %d]\npressure_warm_start: %.9g\n"
                       "projection_rest_density: %.9g  # kg/m^3, the cubic spline's lattice sum\n",
-                      d->cy.eta, d->cy.pressure_solver == STF_PRESSURE_CG ? "cg" : "jacobi",
+                      d->cy.eta, stf_pressure_solver_name(d->cy.pressure_solver),
                       stf_wall_pressure_name(d->cy.wall_pressure),
                       stf_pressure_gradient_name(d->cy.pressure_gradient),
                       d->cy.min_pressure_iterations, d->cy.max_pressure_iterations,

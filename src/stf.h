@@ -362,18 +362,26 @@ STF_API stf_collider_def stf_default_collider_def(void);
  * in it back into the container, and its outside is free. */
 static inline int stf_wall_two_sided(double wall, double spacing) { return wall >= spacing; }
 
-/* The scene keys' names of enum stf_pressure_gradient, in its order (NULL-terminated: the
- * scene parser's list of choices). */
+/* The scene keys' names of enum stf_pressure_solver, stf_wall_pressure and
+ * stf_pressure_gradient, each in its enum's order (NULL-terminated: the scene parser's lists
+ * of choices), and the name of a value (what the run's parameters and messages print). */
+#define STF_PRESSURE_SOLVER_NAMES {"jacobi", "cg", NULL}
+#define STF_WALL_PRESSURE_NAMES {"own", "mirror", "hydrostatic", NULL}
 #define STF_PRESSURE_GRADIENT_NAMES {"symmetric", "local_minimum", "offset", NULL}
+static inline const char *stf_pressure_solver_name(int s)
+{
+    static const char *const names[] = STF_PRESSURE_SOLVER_NAMES;
+    return s >= STF_PRESSURE_JACOBI && s <= STF_PRESSURE_CG ? names[s] : "?";
+}
+static inline const char *stf_wall_pressure_name(int w)
+{
+    static const char *const names[] = STF_WALL_PRESSURE_NAMES;
+    return w >= STF_WALL_PRESSURE_OWN && w <= STF_WALL_PRESSURE_HYDROSTATIC ? names[w] : "?";
+}
 static inline const char *stf_pressure_gradient_name(int g)
 {
     static const char *const names[] = STF_PRESSURE_GRADIENT_NAMES;
     return g >= STF_PRESSURE_GRADIENT_SYMMETRIC && g <= STF_PRESSURE_GRADIENT_OFFSET ? names[g] : "?";
-}
-
-static inline const char *stf_wall_pressure_name(int w)
-{
-    return w == STF_WALL_PRESSURE_HYDROSTATIC ? "hydrostatic" : w == STF_WALL_PRESSURE_MIRROR ? "mirror" : "own";
 }
 /* A bounded shape's size about its body origin: the radius of the largest sphere inside it
  * (m; 0 for a convex hull that does not hold the origin) and of the smallest sphere holding

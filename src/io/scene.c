@@ -723,8 +723,8 @@ static int parse_history(loader *L, const mapv *h)
 
 /* The projection's choices, shared by effects.carreau_yasuda and effects.pressure (mode
  * projection): the names in the order of their enums (stf.h), so the index is the value. */
-static const char *const psolvers[] = {"jacobi", "cg", NULL};
-static const char *const walls[] = {"own", "mirror", "hydrostatic", NULL};
+static const char *const psolvers[] = STF_PRESSURE_SOLVER_NAMES;
+static const char *const walls[] = STF_WALL_PRESSURE_NAMES;
 static const char *const gradients[] = STF_PRESSURE_GRADIENT_NAMES;
 
 /* effects.carreau_yasuda: the second paper's model (needs fluid.model: carreau_yasuda). */
