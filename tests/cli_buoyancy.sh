@@ -15,6 +15,10 @@
 #   wall_pressure: hydrostatic (src/cy_walls.c) and eta 1e-5: at the default 1e-2 the force
 #   swings from step to step by a standard deviation of 6-30% of rho V g, and at 1e-4 by a
 #   period-two swing of up to 13% at 1.5 spacings (tests/README.md, "Buoyancy by radius").
+#   Jacobi at 1.5 and 2 spacings; from 3 spacings on the conjugate gradients from zero
+#   (warm_start 0): there Jacobi stops at its 100-iteration cap every step (its density error
+#   2.5e-5 to 1e-4) where the conjugate gradients reach eta in 49-76 iterations, in 11.5 / 21
+#   / 61 s against 19.4 / 30 / 86-113 s at 3 / 6 / 10 spacings (one core).
 # Args: STF_BINARY PROJECT_DIR
 . "$(dirname "$0")/lib_cli.sh" cli_buoyancy "$@"
 stf=$STF
@@ -26,7 +30,8 @@ for RS in $radii; do
         /usr/bin/python3 "$PROJ/tests/held_sphere.py" scene cl "$RS" 0.004 > ball_$RS.yaml
         walls=(--set effects.pressure.wall=$wall)
     else
-        /usr/bin/python3 "$PROJ/tests/held_sphere.py" scene cy "$RS" 0.004 eta=1e-5 wall_pressure=$wall > ball_$RS.yaml
+        solver=; case $RS in 1.5|2) ;; *) solver="pressure_solver=cg warm_start=0" ;; esac
+        /usr/bin/python3 "$PROJ/tests/held_sphere.py" scene cy "$RS" 0.004 eta=1e-5 wall_pressure=$wall $solver > ball_$RS.yaml
         walls=()
     fi
     "$stf" run ball_$RS.yaml -o ball_$RS.h5 --quiet "${walls[@]}" 2>err_$RS.txt ||
