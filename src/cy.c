@@ -107,6 +107,7 @@ int stf_cy_create(stf_fluid *f)
     stf_cy_tables(f, c);
     c->mirror = f->def.cy.wall_pressure == STF_WALL_PRESSURE_OWN ? 1.0 : 2.0;
     c->hydro = f->def.cy.wall_pressure == STF_WALL_PRESSURE_HYDROSTATIC;
+    c->wall_div = f->def.cy.pressure_gradient == STF_PRESSURE_GRADIENT_OFFSET ? 2.0 : c->mirror;
     /* The mirrored wall's pressure holds the fluid at half a spacing under any head (its
        lattice's first layer is there), so the collision stage is a backstop inside that: at
        half a spacing too it would stop every particle the pressure brings to the wall,

@@ -36,6 +36,9 @@ typedef struct cy_state {
     double mirror;       /* the walls' weight in the projection: 1 (wall_pressure own), 2
                             (mirror: the wall's lattice carries the particle's pressure, and
                             sees its approach as a mirror does; cy_walls.c) */
+    double wall_div;     /* the walls' weight in the predicted density (Eq. 19): mirror's,
+                            but 2 with pressure_gradient offset and the own wall (ours: the
+                            approach to a wall counts as a mirror's; cy_pressure.c) */
     double wall_rho[WALL_BINS + 1];  /* wall density by distance, kg/m^3 */
     double wall_grad[WALL_BINS + 1]; /* |sum_b m grad W_ib| by distance, kg/m^4 */
     double *rho, *S, *kappa, *ktot, *rhostar; /* n each */

@@ -87,7 +87,17 @@ static void grad_one(const stf_fluid *f, const double *y, double *u, int i)
     grad_at(f, y, i, u + 3 * i);
 }
 
-/* (D u)_i = m sum_j (u_i - u_j).grad W_ij + u_i.G_w,i (Eq. 19's divergence). */
+/* (D u)_i = m sum_j (u_i - u_j).grad W_ij + u_i.G_w,i (Eq. 19's divergence), the walls' term
+ * weighted by c->wall_div: the push's weight (1 for the own wall, 2 for the mirror), except with
+ * pressure_gradient offset and the own wall, where an approach to the wall counts as a mirror's
+ * (2) while the push stays once (ours). There the wall pushes with y_i - y_min only, and a
+ * particle's own pressure does not push it (grad_min_at), so nothing resisted a particle
+ * sliding into the wall at constant density: with weight 1 its approach to the wall and its
+ * departure from its neighbours cancel in rho*_i (u_i.(sum_j m grad W_ij + G_w,i) is about
+ * zero), which the symmetric form's absolute pressure, growing G_w,i times y_i, resists. A still
+ * column 21 cm deep (3.5 mm) then blew up from the particles along its walls within 18-90
+ * steps; with the approach counted twice it ran 300 steps, its fastest particle at 5 cm/s, and
+ * settled from warm_start 0 (tests/README.md, "Which wall `offset` wants"). */
 static double div_one(const stf_fluid *f, const double *u, int i)
 {
     const cy_state *c = f->cy;
@@ -101,14 +111,14 @@ static double div_one(const stf_fluid *f, const double *u, int i)
         d2 += (ui[2] - uj[2]) * pr->g[2];
     }
     const double *G = c->gw + 3 * i;
-    double w = c->mirror;
+    double w = c->wall_div;
     return f->mass * (d0 + d1 + d2) + w * ui[0] * G[0] + w * ui[1] * G[1] + w * ui[2] * G[2];
 }
 
 /* rho*_i (Eq. 19) from the velocities v: rho_i + dt (D v - the walls' v_w . m grad W). */
 static double predict_one(const stf_fluid *f, const double *v, int i, double dt)
 {
-    return f->cy->rho[i] + dt * (div_one(f, v, i) - f->cy->mirror * f->cy->qw[i]);
+    return f->cy->rho[i] + dt * (div_one(f, v, i) - f->cy->wall_div * f->cy->qw[i]);
 }
 
 /* rho*_i from v, and the next iteration's k_i from it (Eq. 21; only compression is

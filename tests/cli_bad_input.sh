@@ -220,14 +220,6 @@ grep -E -q "^stf: note: body 'ball' \(.*small_drop\.yaml:$L\) starts inside flui
     --set 'bodies.0.velocity=[0, 0, 0]' --set fluid.settle=0.02 >immersed.out 2>immersed.err ||
     fail "a body inside the settled fluid: exit $?: $(tail -n 2 immersed.err)"
 grep -q "starts inside" immersed.err && fail "a body inside the settled fluid got the note: $(head -c 300 immersed.err)"
-# pressure_gradient offset without the hydrostatic wall runs, with a note (a deep column blew up)
-/usr/bin/python3 "$PROJ/tests/settling_scene.py" 1.5 0.25 0.002 pressure_gradient=offset settle=0 > offset.yaml
-"$STF" run offset.yaml -o offset.h5 --quiet >offset.out 2>offset.err || fail "offset with the own wall: exit $?: $(tail -n 2 offset.err)"
-grep -q "^stf: note: pressure_gradient offset with wall_pressure own" offset.err ||
-    fail "offset with the own wall: no note: $(head -c 300 offset.err)"
-/usr/bin/python3 "$PROJ/tests/settling_scene.py" 1.5 0.25 0.002 pressure_gradient=offset settle=0 wall_pressure=hydrostatic > offset_h.yaml
-"$STF" run offset_h.yaml -o offset.h5 --quiet >offset.out 2>offset.err || fail "offset with the hydrostatic wall: exit $?"
-grep -q "offset with" offset.err && fail "offset with the hydrostatic wall got the note"
 # a body that starts inside another (ODE would throw them apart) is refused; one that only
 # touches it runs
 expect_bad body_in_body 'bodies\.1\.position: the body .b2. starts inside bodies\.0 \(.ball.\)' -- \
