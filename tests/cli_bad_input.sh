@@ -220,6 +220,14 @@ grep -E -q "^stf: note: body 'ball' \(.*small_drop\.yaml:$L\) starts inside flui
     --set 'bodies.0.velocity=[0, 0, 0]' --set fluid.settle=0.02 >immersed.out 2>immersed.err ||
     fail "a body inside the settled fluid: exit $?: $(tail -n 2 immersed.err)"
 grep -q "starts inside" immersed.err && fail "a body inside the settled fluid got the note: $(head -c 300 immersed.err)"
+# pressure_gradient offset with a warm start above 0.8 runs, with a note (a tank blew up at 0.9)
+/usr/bin/python3 "$PROJ/tests/settling_scene.py" 1.5 0.25 0.002 pressure_gradient=offset settle=0 warm_start=0.9 > offset.yaml
+"$STF" run offset.yaml -o offset.h5 --quiet >offset.out 2>offset.err || fail "offset at warm start 0.9: exit $?: $(tail -n 2 offset.err)"
+grep -q "^stf: note: .*offset\.yaml: effects\.carreau_yasuda\.pressure_gradient offset with effects\.carreau_yasuda\.warm_start 0\.9" offset.err ||
+    fail "offset at warm start 0.9: no note: $(head -c 300 offset.err)"
+/usr/bin/python3 "$PROJ/tests/settling_scene.py" 1.5 0.25 0.002 pressure_gradient=offset settle=0 warm_start=0.5 > offset_5.yaml
+"$STF" run offset_5.yaml -o offset.h5 --quiet >offset.out 2>offset.err || fail "offset at warm start 0.5: exit $?"
+grep -q "pressure_gradient offset with" offset.err && fail "offset at warm start 0.5 got the note: $(head -c 300 offset.err)"
 # a body that starts inside another (ODE would throw them apart) is refused; one that only
 # touches it runs
 expect_bad body_in_body 'bodies\.1\.position: the body .b2. starts inside bodies\.0 \(.ball.\)' -- \
