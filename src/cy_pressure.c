@@ -88,16 +88,12 @@ static void grad_one(const stf_fluid *f, const double *y, double *u, int i)
 }
 
 /* (D u)_i = m sum_j (u_i - u_j).grad W_ij + u_i.G_w,i (Eq. 19's divergence), the walls' term
- * weighted by c->wall_div: the push's weight (1 for the own wall, 2 for the mirror), except with
- * pressure_gradient offset and the own wall, where an approach to the wall counts as a mirror's
- * (2) while the push stays once (ours). There the wall pushes with y_i - y_min only, and a
- * particle's own pressure does not push it (grad_min_at), so nothing resisted a particle
- * sliding into the wall at constant density: with weight 1 its approach to the wall and its
- * departure from its neighbours cancel in rho*_i (u_i.(sum_j m grad W_ij + G_w,i) is about
- * zero), which the symmetric form's absolute pressure, growing G_w,i times y_i, resists. A still
- * column 21 cm deep (3.5 mm) then blew up from the particles along its walls within 18-90
- * steps; with the approach counted twice it ran 300 steps, its fastest particle at 5 cm/s, and
- * settled from warm_start 0 (tests/README.md, "Which wall `offset` wants"). */
+ * weighted by c->wall_div: the push's weight, except with pressure_gradient offset and the own
+ * wall, where an approach to the wall counts twice, as the mirror's (ours). There a particle's
+ * own pressure does not push it (grad_min_at) and the wall pushes with y_i - y_min once, while
+ * with weight 1 its approach to the wall and its departure from its neighbours cancel in rho*_i:
+ * nothing resisted a particle sliding into the wall, and a still column blew up from its walls
+ * (src/README.md, the `offset` entry; tests/README.md, "Which wall `offset` wants"). */
 static double div_one(const stf_fluid *f, const double *u, int i)
 {
     const cy_state *c = f->cy;

@@ -364,24 +364,29 @@ static inline int stf_wall_two_sided(double wall, double spacing) { return wall 
 
 /* The scene keys' names of enum stf_pressure_solver, stf_wall_pressure and
  * stf_pressure_gradient, each in its enum's order (NULL-terminated: the scene parser's lists
- * of choices), and the name of a value (what the run's parameters and messages print). */
+ * of choices), and the name of a value (what the run's parameters and messages print; "?"
+ * outside the list). */
 #define STF_PRESSURE_SOLVER_NAMES {"jacobi", "cg", NULL}
 #define STF_WALL_PRESSURE_NAMES {"own", "mirror", "hydrostatic", NULL}
 #define STF_PRESSURE_GRADIENT_NAMES {"symmetric", "local_minimum", "offset", NULL}
+static inline const char *stf_name_in_list(const char *const *names, int count, int v)
+{
+    return v >= 0 && v < count ? names[v] : "?";
+}
 static inline const char *stf_pressure_solver_name(int s)
 {
     static const char *const names[] = STF_PRESSURE_SOLVER_NAMES;
-    return s >= STF_PRESSURE_JACOBI && s <= STF_PRESSURE_CG ? names[s] : "?";
+    return stf_name_in_list(names, (int)(sizeof names / sizeof *names) - 1, s);
 }
 static inline const char *stf_wall_pressure_name(int w)
 {
     static const char *const names[] = STF_WALL_PRESSURE_NAMES;
-    return w >= STF_WALL_PRESSURE_OWN && w <= STF_WALL_PRESSURE_HYDROSTATIC ? names[w] : "?";
+    return stf_name_in_list(names, (int)(sizeof names / sizeof *names) - 1, w);
 }
 static inline const char *stf_pressure_gradient_name(int g)
 {
     static const char *const names[] = STF_PRESSURE_GRADIENT_NAMES;
-    return g >= STF_PRESSURE_GRADIENT_SYMMETRIC && g <= STF_PRESSURE_GRADIENT_OFFSET ? names[g] : "?";
+    return stf_name_in_list(names, (int)(sizeof names / sizeof *names) - 1, g);
 }
 /* A bounded shape's size about its body origin: the radius of the largest sphere inside it
  * (m; 0 for a convex hull that does not hold the origin) and of the smallest sphere holding
